@@ -1,0 +1,12 @@
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace invr::cli {
+
+// Each registers its subcommand on `app`; the callback runs the command and sets `exitCode`.
+void addRenderCommand(CLI::App& app, int& exitCode);
+void addZooCommand(CLI::App& app, int& exitCode);
+void addBenchCommand(CLI::App& app, int& exitCode);
+
+}  // namespace invr::cli

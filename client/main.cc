@@ -1,0 +1,35 @@
+// invr: the command-line client.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "client/commands.h"
+#include "client/exit_codes.h"
+#include "core/error.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"invr: physics-based inverse rendering"};
+  app.require_subcommand(1);
+  int exitCode = invr::exit_code::kOk;
+  invr::cli::addRenderCommand(app, exitCode);
+  invr::cli::addZooCommand(app, exitCode);
+  invr::cli::addBenchCommand(app, exitCode);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return invr::exit_code::kUsage;
+  } catch (const invr::InputError& e) {
+    std::cerr << "invr: error: " << e.what() << "\n";
+    return invr::exit_code::kInputError;
+  } catch (const std::exception& e) {
+    std::cerr << "invr: internal error: " << e.what() << "\n";
+    return 3;
+  }
+  return exitCode;
+}

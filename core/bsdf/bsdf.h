@@ -1,0 +1,93 @@
+// Materials and the BSDF evaluated at a shading point. One small value type with a switch keeps
+// the hot path free of virtual calls; each lobe's maths lives in its own header.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "core/bsdf/bsdf_sample.h"
+#include "core/bsdf/dielectric.h"
+#include "core/bsdf/diffuse.h"
+#include "core/bsdf/mirror.h"
+#include "core/bsdf/rough_conductor.h"
+#include "core/bsdf/rough_plastic.h"
+#include "core/scene/texture.h"
+
+namespace invr {
+
+enum class BsdfKind { Diffuse, RoughConductor, RoughPlastic, Mirror, Dielectric };
+
+// GGX alpha below this is treated as this (keeps D finite; near-mirror surfaces should use Mirror).
+inline constexpr float kMinAlpha = 1e-3f;
+
+// A BSDF with its textures already looked up. Directions are in the local shading frame.
+// Opaque lobes are two-sided: when wo is below the surface both directions are mirrored.
+struct Bsdf {
+  BsdfKind kind = BsdfKind::Diffuse;
+  Rgb albedo{0.5f};
+  float alpha = 0.1f;
+  Rgb eta{1.f}, k{0.f};
+  float ior = 1.5f;
+  Rgb reflectance{1.f};
+
+  bool isDelta() const { return kind == BsdfKind::Mirror || kind == BsdfKind::Dielectric; }
+
+  // BSDF value times |cos theta_i|.
+  Rgb eval(Vec3 wo, Vec3 wi) const {
+    if (isDelta()) return Rgb(0.f);
+    if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
+    switch (kind) {
+      case BsdfKind::Diffuse: return diffuse::eval(albedo, wo, wi);
+      case BsdfKind::RoughConductor: return rough_conductor::eval(alpha, eta, k, wo, wi);
+      case BsdfKind::RoughPlastic: return rough_plastic::eval(albedo, alpha, ior, wo, wi);
+      default: return Rgb(0.f);
+    }
+  }
+  float pdf(Vec3 wo, Vec3 wi) const {
+    if (isDelta()) return 0.f;
+    if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
+    switch (kind) {
+      case BsdfKind::Diffuse: return diffuse::pdf(wo, wi);
+      case BsdfKind::RoughConductor: return rough_conductor::pdf(alpha, wo, wi);
+      case BsdfKind::RoughPlastic: return rough_plastic::pdf(albedo, alpha, ior, wo, wi);
+      default: return 0.f;
+    }
+  }
+  std::optional<BsdfSample> sample(Vec3 wo, float uc, Vec2 u) const {
+    if (kind == BsdfKind::Dielectric) return dielectric::sample(ior, wo, uc);
+    bool flip = wo.z < 0.f;
+    if (flip) wo.z = -wo.z;
+    std::optional<BsdfSample> s;
+    switch (kind) {
+      case BsdfKind::Diffuse: s = diffuse::sample(albedo, wo, u); break;
+      case BsdfKind::RoughConductor: s = rough_conductor::sample(alpha, eta, k, wo, u); break;
+      case BsdfKind::RoughPlastic: s = rough_plastic::sample(albedo, alpha, ior, wo, uc, u); break;
+      case BsdfKind::Mirror: s = mirror::sample(reflectance, wo); break;
+      default: break;
+    }
+    if (s && flip) s->wi.z = -s->wi.z;
+    return s;
+  }
+};
+
+struct Material {
+  std::string name;
+  BsdfKind kind = BsdfKind::Diffuse;
+  Texture albedo{Rgb(0.5f)};
+  Texture roughness{Rgb(0.1f)};
+  Rgb eta{1.f}, k{0.f};
+  float ior = 1.5f;
+  Rgb reflectance{1.f};
+
+  Bsdf at(Vec2 uv) const {
+    Bsdf b;
+    b.kind = kind;
+    if (kind == BsdfKind::Diffuse || kind == BsdfKind::RoughPlastic) b.albedo = albedo.eval(uv);
+    if (kind == BsdfKind::RoughConductor || kind == BsdfKind::RoughPlastic)
+      b.alpha = std::max(roughness.evalScalar(uv), kMinAlpha);
+    b.eta = eta; b.k = k; b.ior = ior; b.reflectance = reflectance;
+    return b;
+  }
+};
+
+}  // namespace invr

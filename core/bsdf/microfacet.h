@@ -1,0 +1,58 @@
+// Isotropic GGX (Trowbridge-Reitz) distribution with Smith shadowing and visible-normal sampling
+// (Heitz 2018). All vectors in the local shading frame (z = normal); alpha is GGX roughness.
+#pragma once
+
+#include "core/math/vec.h"
+
+namespace invr::ggx {
+
+inline float D(Vec3 m, float alpha) {
+  if (m.z <= 0.f) return 0.f;
+  float a2 = alpha * alpha;
+  float t = m.z * m.z * (a2 - 1.f) + 1.f;
+  return a2 / (kPi * t * t);
+}
+
+inline float lambda(Vec3 w, float alpha) {
+  float cos2 = w.z * w.z;
+  if (cos2 <= 0.f) return 0.f;
+  float tan2 = std::max(0.f, 1.f - cos2) / cos2;
+  return 0.5f * (-1.f + std::sqrt(1.f + alpha * alpha * tan2));
+}
+
+inline float G1(Vec3 w, float alpha) { return 1.f / (1.f + lambda(w, alpha)); }
+inline float G2(Vec3 wo, Vec3 wi, float alpha) { return 1.f / (1.f + lambda(wo, alpha) + lambda(wi, alpha)); }
+
+// Density of visible normals seen from wo (wo.z > 0), with respect to solid angle of m.
+inline float pdfVisible(Vec3 wo, Vec3 m, float alpha) {
+  float dm = dot(wo, m);
+  if (dm <= 0.f || wo.z <= 0.f) return 0.f;
+  return G1(wo, alpha) * dm * D(m, alpha) / wo.z;
+}
+
+inline Vec3 sampleVisible(Vec3 wo, float alpha, Vec2 u) {
+  Vec3 vh = normalize(Vec3(alpha * wo.x, alpha * wo.y, wo.z));
+  float lensq = vh.x * vh.x + vh.y * vh.y;
+  Vec3 t1 = lensq > 0.f ? Vec3(-vh.y, vh.x, 0.f) / std::sqrt(lensq) : Vec3(1.f, 0.f, 0.f);
+  Vec3 t2 = cross(vh, t1);
+  float r = std::sqrt(u.x), phi = 2.f * kPi * u.y;
+  float p1 = r * std::cos(phi), p2 = r * std::sin(phi);
+  float s = 0.5f * (1.f + vh.z);
+  p2 = (1.f - s) * safeSqrt(1.f - p1 * p1) + s * p2;
+  Vec3 nh = t1 * p1 + t2 * p2 + vh * safeSqrt(1.f - p1 * p1 - p2 * p2);
+  return normalize(Vec3(alpha * nh.x, alpha * nh.y, std::max(1e-7f, nh.z)));
+}
+
+// Density of the reflected direction wi when m is drawn with sampleVisible.
+inline float pdfReflect(Vec3 wo, Vec3 wi, float alpha) {
+  Vec3 h = wo + wi;
+  if (lengthSquared(h) == 0.f) return 0.f;
+  Vec3 m = normalize(h);
+  float dm = dot(wo, m);
+  if (dm <= 0.f) return 0.f;
+  return pdfVisible(wo, m, alpha) / (4.f * dm);
+}
+
+inline Vec3 reflect(Vec3 w, Vec3 m) { return m * (2.f * dot(w, m)) - w; }
+
+}  // namespace invr::ggx

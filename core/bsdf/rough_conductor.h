@@ -1,0 +1,33 @@
+// GGX microfacet conductor: f = F(wo.m) D(m) G2 / (4 cos_o cos_i), sampled with visible normals.
+#pragma once
+
+#include <optional>
+
+#include "core/bsdf/bsdf_sample.h"
+#include "core/bsdf/fresnel.h"
+#include "core/bsdf/microfacet.h"
+
+namespace invr::rough_conductor {
+
+inline Rgb eval(float alpha, Rgb eta, Rgb k, Vec3 wo, Vec3 wi) {
+  if (wo.z <= 0.f || wi.z <= 0.f) return Rgb(0.f);
+  Vec3 m = normalize(wo + wi);
+  return fresnelConductor(dot(wo, m), eta, k) * (ggx::D(m, alpha) * ggx::G2(wo, wi, alpha) / (4.f * wo.z));
+}
+inline float pdf(float alpha, Vec3 wo, Vec3 wi) {
+  if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
+  return ggx::pdfReflect(wo, wi, alpha);
+}
+inline std::optional<BsdfSample> sample(float alpha, Rgb eta, Rgb k, Vec3 wo, Vec2 u) {
+  if (wo.z <= 0.f) return std::nullopt;
+  Vec3 m = ggx::sampleVisible(wo, alpha, u);
+  Vec3 wi = ggx::reflect(wo, m);
+  if (wi.z <= 0.f) return std::nullopt;
+  float p = ggx::pdfVisible(wo, m, alpha) / (4.f * dot(wo, m));
+  if (!(p > 0.f)) return std::nullopt;
+  // f cos / pdf simplifies to F G2 / G1(wo).
+  Rgb w = fresnelConductor(dot(wo, m), eta, k) * (ggx::G2(wo, wi, alpha) / ggx::G1(wo, alpha));
+  return BsdfSample{wi, w, p};
+}
+
+}  // namespace invr::rough_conductor

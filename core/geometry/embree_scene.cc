@@ -1,0 +1,58 @@
+#include "core/geometry/embree_scene.h"
+
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace invr {
+
+EmbreeScene::EmbreeScene() {
+  device_ = rtcNewDevice(nullptr);
+  if (!device_) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+}
+
+EmbreeScene::~EmbreeScene() {
+  for (auto g : geoms_) rtcReleaseGeometry(g);
+  if (scene_) rtcReleaseScene(scene_);
+  if (device_) rtcReleaseDevice(device_);
+}
+
+void EmbreeScene::build(const std::vector<TriangleMesh>& meshes, const std::vector<bool>& dynamic) {
+  for (auto g : geoms_) rtcReleaseGeometry(g);
+  geoms_.clear();
+  if (scene_) rtcReleaseScene(scene_);
+  scene_ = rtcNewScene(device_);
+  bool anyDynamic = false;
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    const TriangleMesh& m = meshes[i];
+    bool dyn = i < dynamic.size() && dynamic[i];
+    anyDynamic |= dyn;
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(g, dyn ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
+    // Embree reads vertex buffers with 16-byte loads: allocate one padding vertex.
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          sizeof(Vec3), m.positions.size() + 1));
+    std::memcpy(v, m.positions.data(), m.positions.size() * sizeof(Vec3));
+    auto* idx = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                               3 * sizeof(uint32_t), m.triangleCount()));
+    std::memcpy(idx, m.indices.data(), m.indices.size() * sizeof(uint32_t));
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(scene_, g, unsigned(i));
+    geoms_.push_back(g);
+  }
+  rtcSetSceneBuildQuality(scene_, anyDynamic ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_HIGH);
+  if (anyDynamic) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC);
+  rtcCommitScene(scene_);
+  if (rtcGetDeviceError(device_) != RTC_ERROR_NONE) throw std::runtime_error("Embree: scene build failed");
+}
+
+void EmbreeScene::updatePositions(uint32_t mesh, const std::vector<Vec3>& positions) {
+  RTCGeometry g = geoms_.at(mesh);
+  auto* v = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
+  std::memcpy(v, positions.data(), positions.size() * sizeof(Vec3));
+  rtcUpdateGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(g);
+  rtcCommitScene(scene_);
+}
+
+}  // namespace invr

@@ -1,0 +1,64 @@
+// Embree 3 acceleration structure: one triangle geometry per mesh (geomID = mesh index).
+// Meshes marked dynamic are built for refitting so shape optimisation can move their vertices.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <vector>
+
+#include "core/scene/mesh.h"
+
+namespace invr {
+
+struct RayHit {
+  float t;
+  uint32_t mesh, tri;
+  float b1, b2;  // barycentrics of vertices 1 and 2
+};
+
+class EmbreeScene {
+ public:
+  EmbreeScene();
+  ~EmbreeScene();
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+  void build(const std::vector<TriangleMesh>& meshes, const std::vector<bool>& dynamic = {});
+  // Copies new vertex positions into mesh `mesh` and refits/rebuilds the BVH.
+  void updatePositions(uint32_t mesh, const std::vector<Vec3>& positions);
+
+  bool intersect(Vec3 o, Vec3 d, float tmin, float tmax, RayHit& hit) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    rh.ray.org_x = o.x; rh.ray.org_y = o.y; rh.ray.org_z = o.z;
+    rh.ray.dir_x = d.x; rh.ray.dir_y = d.y; rh.ray.dir_z = d.z;
+    rh.ray.tnear = tmin; rh.ray.tfar = tmax;
+    rh.ray.mask = 0xffffffffu; rh.ray.flags = 0; rh.ray.time = 0.f; rh.ray.id = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene_, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    hit = {rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v};
+    return true;
+  }
+  bool occluded(Vec3 o, Vec3 d, float tmin, float tmax) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay r;
+    r.org_x = o.x; r.org_y = o.y; r.org_z = o.z;
+    r.dir_x = d.x; r.dir_y = d.y; r.dir_z = d.z;
+    r.tnear = tmin; r.tfar = tmax;
+    r.mask = 0xffffffffu; r.flags = 0; r.time = 0.f; r.id = 0;
+    rtcOccluded1(scene_, &ctx, &r);
+    return r.tfar < 0.f;  // Embree sets tfar = -inf on a hit
+  }
+  RTCScene handle() const { return scene_; }
+
+ private:
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+  std::vector<RTCGeometry> geoms_;
+};
+
+}  // namespace invr

@@ -1,0 +1,103 @@
+#include "core/io/job_io.h"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace invr {
+
+namespace {
+
+std::string lineCol(const std::string& text, size_t offset) {
+  size_t line = 1, col = 1;
+  for (size_t i = 0; i < offset && i < text.size(); ++i) {
+    if (text[i] == '\n') { ++line; col = 1; } else { ++col; }
+  }
+  return std::to_string(line) + ":" + std::to_string(col);
+}
+
+// Best-effort location of a protobuf JSON error in the source text.
+std::string locate(const std::string& json, const std::string& message) {
+  // Syntax errors come with an excerpt of the source (which may span lines) and, on the last
+  // line, a caret whose column indexes into that excerpt.
+  auto nl = message.find('\n');
+  if (nl != std::string::npos) {
+    auto lastNl = message.rfind('\n');
+    std::string excerpt = message.substr(nl + 1, lastNl > nl ? lastNl - nl - 1 : 0);
+    std::string caret = message.substr(lastNl + 1);
+    size_t at = excerpt.empty() ? std::string::npos : json.find(excerpt);
+    size_t col = caret.find('^');
+    if (at != std::string::npos && col != std::string::npos) return lineCol(json, at + col);
+    return "";
+  }
+  // Unknown field "(path) key: Cannot find field." or bad value "(path.key): invalid value ...".
+  std::smatch m;
+  std::string key;
+  if (std::regex_search(message, m, std::regex(R"(\) (\w+): Cannot find field)"))) key = m[1];
+  else if (std::regex_search(message, m, std::regex(R"(\(([\w\.\[\]]+)\):)"))) {
+    key = m[1];
+    key = key.substr(key.find_last_of('.') + 1);
+    key = key.substr(0, key.find('['));
+  }
+  if (key.empty()) return "";
+  size_t at = json.find("\"" + key + "\"");
+  return at == std::string::npos ? "" : lineCol(json, at);
+}
+
+std::string firstLine(const std::string& s) { return s.substr(0, s.find('\n')); }
+
+}  // namespace
+
+invr::v1::JobSpec parseJobJson(const std::string& json, const std::string& sourceName) {
+  invr::v1::JobSpec job;
+  google::protobuf::util::JsonParseOptions opts;
+  opts.ignore_unknown_fields = false;
+  auto status = google::protobuf::util::JsonStringToMessage(json, &job, opts);
+  if (!status.ok()) {
+    std::string msg(status.message());
+    std::string where = locate(json, msg);
+    std::string text = firstLine(msg);
+    // "(render) spq: Cannot find field." -> "render.spq: unknown field"
+    std::smatch m;
+    if (std::regex_search(text, m, std::regex(R"(^\(([^)]*)\) (\w+): Cannot find field\.?)")))
+      text = (m[1].str().empty() ? "" : m[1].str() + ".") + m[2].str() + ": unknown field";
+    else if (std::regex_search(text, m, std::regex(R"(^\(([^)]*)\): (.*)$)")))
+      text = m[1].str() + ": " + m[2].str();
+    throw InputError(sourceName + (where.empty() ? "" : ":" + where) + ": " + text);
+  }
+  if (job.has_render()) validateRenderSettings(job.render());
+  return job;
+}
+
+invr::v1::JobSpec loadJobFile(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("job file '" + path.string() + "': cannot open");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parseJobJson(ss.str(), path.string());
+}
+
+std::string jobToJson(const invr::v1::JobSpec& job) {
+  std::string out;
+  google::protobuf::util::JsonPrintOptions opts;
+  opts.add_whitespace = true;
+  opts.preserve_proto_field_names = true;
+  auto st = google::protobuf::util::MessageToJsonString(job, &out, opts);
+  if (!st.ok()) throw std::runtime_error("cannot serialise job: " + std::string(st.message()));
+  return out;
+}
+
+void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string& path) {
+  auto bad = [&](const std::string& field, const std::string& why) { throw InputError(path + "." + field + ": " + why); };
+  if (r.spp() < 0) bad("spp", "must be positive (got " + std::to_string(r.spp()) + ")");
+  if (r.spp() > 1 << 20) bad("spp", "too large (got " + std::to_string(r.spp()) + ", max 1048576)");
+  if (r.max_depth() < 0 || r.max_depth() > 1024) bad("max_depth", "must be in 1..1024 (got " + std::to_string(r.max_depth()) + ")");
+  if (r.ris_candidates() < 0 || r.ris_candidates() > 4096) bad("ris_candidates", "must be in 1..4096 (got " + std::to_string(r.ris_candidates()) + ")");
+  if (r.russian_roulette_depth() < 0) bad("russian_roulette_depth", "must not be negative");
+}
+
+}  // namespace invr

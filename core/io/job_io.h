@@ -1,0 +1,20 @@
+// Job files: the protobuf JSON mapping of invr.v1.JobSpec. Parsing is protobuf's; this adds the
+// file name and line:column to its field-path errors and checks values protobuf cannot.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "invr/v1/job.pb.h"
+
+namespace invr {
+
+// Throws InputError("<file>:<line>:<col>: <field path>: <problem>").
+invr::v1::JobSpec parseJobJson(const std::string& json, const std::string& sourceName = "<job>");
+invr::v1::JobSpec loadJobFile(const std::filesystem::path& path);
+std::string jobToJson(const invr::v1::JobSpec& job);
+
+// Checks the render settings (negative spp, absurd depths). Throws InputError naming the field.
+void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string& path = "render");
+
+}  // namespace invr

@@ -1,0 +1,40 @@
+#include "core/lights/light.h"
+
+namespace invr {
+
+LightSample sampleAreaLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2);
+LightSample samplePointOrSpot(const Light& light, Vec3 p);
+LightSample sampleEnvironment(const Light& light, Vec2 u2);
+
+LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2) {
+  switch (light.kind) {
+    case LightKind::Area: return sampleAreaLight(light, scene, p, u2);
+    case LightKind::Point:
+    case LightKind::Spot: return samplePointOrSpot(light, p);
+    default: return sampleEnvironment(light, u2);
+  }
+}
+
+float lightPower(const Light& light, float sceneRadius) {
+  switch (light.kind) {
+    case LightKind::Area: return luminance(light.radiance) * light.scale * light.area * kPi * (light.twoSided ? 2.f : 1.f);
+    case LightKind::Point: return luminance(light.intensity) * light.scale * 4.f * kPi;
+    case LightKind::Spot:
+      return luminance(light.intensity) * light.scale * 2.f * kPi * (1.f - 0.5f * (light.cosInner + light.cosOuter));
+    case LightKind::ConstantEnvironment:
+      return luminance(light.radiance) * light.scale * 4.f * kPi * kPi * sceneRadius * sceneRadius;
+    case LightKind::Environment: {
+      // Mean radiance over the sphere (solid-angle weighted) times the flux through the disk.
+      const Image& im = *light.envImage;
+      double sum = 0, wsum = 0;
+      for (int y = 0; y < im.height(); ++y) {
+        double s = std::sin(kPi * (y + 0.5) / im.height());
+        for (int x = 0; x < im.width(); ++x) { sum += s * luminance(im.rgb(x, y)); wsum += s; }
+      }
+      return float(sum / wsum) * light.scale * 4.f * kPi * kPi * sceneRadius * sceneRadius;
+    }
+  }
+  return 0.f;
+}
+
+}  // namespace invr

@@ -1,0 +1,76 @@
+// Light sources. One value type with a kind tag; each kind's sampling lives in its own file
+// (area_light.cc, point_light.cc, environment_light.cc).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "core/math/rng.h"
+#include "core/math/sampling.h"
+#include "core/scene/texture.h"
+
+namespace invr {
+
+class Scene;
+
+enum class LightKind { Area, Point, Spot, Environment, ConstantEnvironment };
+
+// A direction towards a light from a reference point. For delta lights `pdf` is 1 and `radiance`
+// already includes the 1/d^2 falloff; otherwise pdf is the solid-angle density of wi.
+struct LightSample {
+  Vec3 wi;
+  float dist = 0.f;      // distance to the light point; infinity for environments
+  Rgb radiance{0.f};     // arriving at the reference point (before visibility)
+  float pdf = 0.f;
+  bool delta = false;
+  Vec3 lightPoint, lightNormal;  // for area lights (shadow rays, reservoir anchoring)
+};
+
+struct Light {
+  std::string name;
+  LightKind kind = LightKind::Point;
+  float scale = 1.f;
+  // Area: emissive triangles of one mesh, sampled uniformly by area.
+  uint32_t mesh = 0;
+  Rgb radiance{0.f};
+  bool twoSided = false;
+  Distribution1D triangles;
+  float area = 0.f;
+  // Point and spot.
+  Vec3 position, direction;
+  Rgb intensity{0.f};
+  float cosOuter = -1.f, cosInner = -1.f;
+  // Environments (environment: lat-long image with +y up).
+  std::shared_ptr<const Image> envImage;
+  Distribution2D envDistribution;
+
+  bool isDelta() const { return kind == LightKind::Point || kind == LightKind::Spot; }
+  bool isInfinite() const { return kind == LightKind::Environment || kind == LightKind::ConstantEnvironment; }
+};
+
+// Samples a direction towards `light` from point `p` (u2: two uniforms).
+LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2);
+
+// Area lights: emitted radiance leaving point with geometric normal n towards direction w.
+inline Rgb areaEmission(const Light& l, Vec3 n, Vec3 w) {
+  float c = dot(n, w);
+  return (c > 0.f || (l.twoSided && c < 0.f)) ? l.radiance * l.scale : Rgb(0.f);
+}
+// Solid-angle pdf that sampleLight would assign to hitting point y (normal n) from p.
+float areaLightPdf(const Light& light, Vec3 p, Vec3 y, Vec3 n);
+
+// Environments: radiance arriving from direction w, and the sampling pdf of w.
+Rgb environmentRadiance(const Light& light, Vec3 w);
+float environmentPdf(const Light& light, Vec3 w);
+void buildEnvironmentDistribution(Light& light);
+Vec2 directionToLatLong(Vec3 w);
+Vec3 latLongToDirection(Vec2 uv);
+
+// Spot falloff: 1 inside the inner cone, smoothstep to 0 at the outer cone.
+float spotFalloff(const Light& light, Vec3 dirFromLight);
+
+// Power estimate used to choose between lights (luminance of emitted flux; environments use the
+// scene's bounding sphere of radius sceneRadius).
+float lightPower(const Light& light, float sceneRadius);
+
+}  // namespace invr

@@ -1,0 +1,14 @@
+// Unidirectional path tracing with next-event estimation (NEE+MIS or RIS) and Russian roulette.
+// maxDepth = 1 is direct illumination.
+#pragma once
+
+#include "core/math/rng.h"
+#include "core/render/render_options.h"
+#include "core/scene/scene.h"
+
+namespace invr {
+
+Rgb pathRadiance(const Scene& scene, Vec3 origin, Vec3 dir, Sampler& sampler, const RenderOptions& opt,
+                 PathContext* ctx = nullptr);
+
+}  // namespace invr

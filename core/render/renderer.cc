@@ -1,0 +1,89 @@
+#include "core/render/renderer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/blocked_range2d.h>
+#include <tbb/combinable.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+
+#include "core/error.h"
+#include "core/math/rng.h"
+#include "core/render/path_tracer.h"
+
+namespace invr {
+
+RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
+                        const std::function<void(double)>& progress, std::vector<RayRecord>* recordRays) {
+  if (view < 0 || size_t(view) >= scene.cameras.size())
+    throw InputError("view " + std::to_string(view) + " out of range (scene has " + std::to_string(scene.cameras.size()) + " views)");
+  if (opt.spp <= 0) throw InputError("spp must be positive (got " + std::to_string(opt.spp) + ")");
+  auto t0 = std::chrono::steady_clock::now();
+  const int W = scene.width, H = scene.height;
+  const Camera& cam = scene.cameras[size_t(view)];
+  RenderResult res;
+  res.image = Image(W, H, 3);
+  tbb::combinable<RayStats> stats;
+  tbb::combinable<uint64_t> nonFinite([] { return uint64_t(0); });
+  tbb::enumerable_thread_specific<std::vector<RayRecord>> records;
+  constexpr int kTile = 16;
+  std::atomic<size_t> pixelsDone{0};
+  std::mutex progressMutex;
+
+  tbb::parallel_for(tbb::blocked_range2d<int>(0, H, kTile, 0, W, kTile), [&](const tbb::blocked_range2d<int>& r) {
+    RayStats& st = stats.local();
+    uint64_t& bad = nonFinite.local();
+    PathContext ctx{&st, recordRays ? &records.local() : nullptr};
+    for (int y = r.rows().begin(); y < r.rows().end(); ++y)
+      for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
+        double acc[3] = {0, 0, 0};
+        uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
+        const uint64_t pixelHash = RngKey{opt.seed, 0, uint64_t(view), pixel, 0}.pixelHash();
+        for (int s = 0; s < opt.spp; ++s) {
+          Sampler sampler(RngKey::withSample(pixelHash, uint64_t(s)));
+          float fx = float(x) + sampler.next1D(), fy = float(y) + sampler.next1D();
+          Rgb L = pathRadiance(scene, cam.eye, cam.direction(fx, fy, W, H), sampler, opt, &ctx);
+          if (!isFinite(L)) { ++bad; continue; }
+          acc[0] += L.x; acc[1] += L.y; acc[2] += L.z;
+        }
+        res.image.setRgb(x, y, Rgb(float(acc[0] / opt.spp), float(acc[1] / opt.spp), float(acc[2] / opt.spp)));
+      }
+    size_t done = pixelsDone.fetch_add(r.rows().size() * r.cols().size()) + r.rows().size() * r.cols().size();
+    if (progress) {
+      std::lock_guard lock(progressMutex);
+      progress(double(done) / (double(W) * double(H)));
+    }
+  });
+  stats.combine_each([&](const RayStats& s) { res.rays += s; });
+  nonFinite.combine_each([&](uint64_t n) { res.nonFiniteSamples += n; });
+  if (recordRays) records.combine_each([&](const std::vector<RayRecord>& v) { recordRays->insert(recordRays->end(), v.begin(), v.end()); });
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+Aovs renderAovs(const Scene& scene, int view) {
+  if (view < 0 || size_t(view) >= scene.cameras.size()) throw InputError("view " + std::to_string(view) + " out of range");
+  const int W = scene.width, H = scene.height;
+  const Camera& cam = scene.cameras[size_t(view)];
+  Aovs out{Image(W, H, 3), Image(W, H, 3), Image(W, H, 1)};
+  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y)
+      for (int x = 0; x < W; ++x) {
+        SurfaceHit hit;
+        if (!scene.intersect(cam.eye, cam.direction(float(x) + 0.5f, float(y) + 0.5f, W, H), hit)) continue;
+        Bsdf b = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
+        Rgb albedo = b.kind == BsdfKind::Diffuse || b.kind == BsdfKind::RoughPlastic ? b.albedo
+                     : b.kind == BsdfKind::Mirror                                     ? b.reflectance
+                                                                                      : Rgb(1.f);
+        out.albedo.setRgb(x, y, albedo);
+        out.normal.setRgb(x, y, hit.ns);
+        out.depth.at(x, y, 0) = hit.t;
+      }
+  });
+  return out;
+}
+
+}  // namespace invr

@@ -1,0 +1,39 @@
+// Triangle meshes: built-in primitives, OBJ/PLY loading and validation.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/math/vec.h"
+
+namespace invr {
+
+struct TriangleMesh {
+  std::vector<Vec3> positions;
+  std::vector<Vec3> normals;  // per vertex, optional (empty = flat shading)
+  std::vector<Vec2> uvs;      // per vertex, optional
+  std::vector<uint32_t> indices;  // 3 per triangle
+
+  size_t triangleCount() const { return indices.size() / 3; }
+  float triangleArea(size_t tri) const;
+  void transform(const Affine& xf);
+};
+
+TriangleMesh makeQuad();
+TriangleMesh makeBox();
+TriangleMesh makeSphere(int rings);
+TriangleMesh makeCylinder(int segments, bool capped);
+TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments);
+
+// Loads .obj (tinyobjloader) or .ply (ascii / binary little- and big-endian).
+// Throws InputError naming the file on any problem.
+TriangleMesh loadMesh(const std::filesystem::path& path);
+
+// Throws InputError("<what>: ...") if the mesh is empty, has out-of-range indices, non-finite
+// positions, an edge shared by more than two triangles (non-manifold) or zero total area.
+// Degenerate (zero-area) triangles are removed; returns how many were.
+size_t validateMesh(TriangleMesh& mesh, const std::string& what);
+
+}  // namespace invr

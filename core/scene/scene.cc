@@ -1,0 +1,86 @@
+#include "core/scene/scene.h"
+
+#include <stdexcept>
+
+#include "core/error.h"
+
+namespace invr {
+
+void Scene::finalize() {
+  boundsMin = Vec3(std::numeric_limits<float>::infinity());
+  boundsMax = -boundsMin;
+  for (const auto& m : meshes)
+    for (const auto& p : m.positions) { boundsMin = vmin(boundsMin, p); boundsMax = vmax(boundsMax, p); }
+  if (meshes.empty()) { boundsMin = Vec3(-1.f); boundsMax = Vec3(1.f); }
+  faceNormals_.assign(meshes.size(), {});
+  for (uint32_t m = 0; m < meshes.size(); ++m) computeFaceNormals(m);
+  radius = std::max(0.5f * length(boundsMax - boundsMin), 1e-3f);
+
+  infiniteLights_.clear();
+  std::vector<float> power(lights.size());
+  for (size_t i = 0; i < lights.size(); ++i) {
+    Light& l = lights[i];
+    if (l.kind == LightKind::Area) {
+      const TriangleMesh& m = meshes[l.mesh];
+      std::vector<float> areas(m.triangleCount());
+      double total = 0;
+      for (size_t t = 0; t < areas.size(); ++t) total += (areas[t] = m.triangleArea(t));
+      l.area = float(total);
+      if (!(l.area > 0.f)) throw InputError("light '" + l.name + "': emitting shape has zero area");
+      l.triangles = Distribution1D(areas);
+    }
+    if (l.isInfinite()) infiniteLights_.push_back(uint32_t(i));
+    power[i] = std::max(lightPower(l, radius), 0.f);
+  }
+  lightSelect_ = Distribution1D(power);
+  accel.build(meshes);
+}
+
+void Scene::computeFaceNormals(uint32_t mesh) {
+  const TriangleMesh& m = meshes[mesh];
+  auto& out = faceNormals_[mesh];
+  out.resize(m.triangleCount());
+  for (size_t t = 0; t < out.size(); ++t) {
+    Vec3 a = m.positions[m.indices[3 * t]], b = m.positions[m.indices[3 * t + 1]], c = m.positions[m.indices[3 * t + 2]];
+    Vec3 n = cross(b - a, c - a);
+    float len = length(n);
+    out[t] = len > 0.f ? n / len : Vec3(0, 0, 1);
+  }
+}
+
+void Scene::updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions) {
+  if (positions.size() != meshes.at(mesh).positions.size())
+    throw std::invalid_argument("updateMeshPositions: vertex count changed");
+  meshes[mesh].positions = std::move(positions);
+  computeFaceNormals(mesh);
+  accel.updatePositions(mesh, meshes[mesh].positions);
+}
+
+bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
+  RayHit rh;
+  if (!accel.intersect(o, d, 0.f, tmax, rh)) return false;
+  const TriangleMesh& m = meshes[rh.mesh];
+  uint32_t i0 = m.indices[3 * rh.tri], i1 = m.indices[3 * rh.tri + 1], i2 = m.indices[3 * rh.tri + 2];
+  float b0 = 1.f - rh.b1 - rh.b2;
+  Vec3 p0 = m.positions[i0], p1 = m.positions[i1], p2 = m.positions[i2];
+  hit.p = p0 * b0 + p1 * rh.b1 + p2 * rh.b2;
+  hit.ng = faceNormals_[rh.mesh][rh.tri];
+  if (!m.normals.empty()) {
+    Vec3 n = m.normals[i0] * b0 + m.normals[i1] * rh.b1 + m.normals[i2] * rh.b2;
+    float len = length(n);
+    hit.ns = len > 0.f ? n / len : hit.ng;
+    // Keep the shading normal on the geometric normal's side so the local frame is consistent.
+    if (dot(hit.ns, hit.ng) < 0.f) hit.ns = -hit.ns;
+  } else {
+    hit.ns = hit.ng;
+  }
+  hit.uv = m.uvs.empty() ? Vec2(rh.b1, rh.b2) : m.uvs[i0] * b0 + m.uvs[i1] * rh.b1 + m.uvs[i2] * rh.b2;
+  hit.mesh = rh.mesh;
+  hit.tri = rh.tri;
+  hit.b1 = rh.b1;
+  hit.b2 = rh.b2;
+  hit.t = rh.t;
+  return true;
+}
+
+}  // namespace invr

@@ -1,0 +1,89 @@
+// The renderer's scene: world-space meshes, materials, lights, views and the Embree BVH.
+// Built from the protobuf description by scene_builder.cc; immutable while rendering.
+#pragma once
+
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/bsdf/bsdf.h"
+#include "core/geometry/embree_scene.h"
+#include "core/lights/light.h"
+#include "core/scene/camera.h"
+#include "core/scene/mesh.h"
+
+namespace invr {
+
+struct SurfaceHit {
+  Vec3 p;
+  Vec3 ng;  // unit geometric normal, from the triangle's winding
+  Vec3 ns;  // unit shading normal (interpolated vertex normals, or ng)
+  Vec2 uv;
+  uint32_t mesh = 0, tri = 0;
+  float b1 = 0, b2 = 0, t = 0;
+};
+
+// Offsets a ray origin off the surface on the side of direction d (avoids self-intersection
+// without a tnear that would miss close geometry).
+inline Vec3 offsetOrigin(Vec3 p, Vec3 ng, Vec3 d) {
+  float eps = 1e-4f * (1.f + maxComponent(vmax(p, -p)));
+  return p + ng * (dot(ng, d) >= 0.f ? eps : -eps);
+}
+
+class Scene {
+ public:
+  std::string name;
+  std::vector<TriangleMesh> meshes;
+  std::vector<std::string> meshNames;
+  std::vector<int> meshMaterial;  // index into materials
+  std::vector<int> meshLight;     // index into lights, -1 if not emissive
+  std::vector<Material> materials;
+  std::vector<Light> lights;
+  std::vector<Camera> cameras;
+  int width = 256, height = 256;
+
+  Vec3 boundsMin{0.f}, boundsMax{0.f};
+  float radius = 1.f;
+
+  // Computes bounds, face normals, light areas and the light-selection distribution, and builds
+  // the BVH.
+  void finalize();
+  // Moves a mesh's vertices (shape optimisation): refits the BVH and updates face normals.
+  // Light areas are recomputed by calling finalize() when an emitter moves.
+  void updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions);
+
+  // Unit geometric normal of a triangle (from its winding), precomputed: cheaper than a cross
+  // product and a square root on every hit.
+  Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return faceNormals_[mesh][tri]; }
+
+  bool intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax = std::numeric_limits<float>::infinity()) const;
+  // Shadow rays. Both ends are pushed off their surfaces (the light point along its own normal)
+  // so neither the receiver nor the emitter can occlude the segment between them.
+  static Vec3 shadowOrigin(Vec3 p, Vec3 ng, Vec3 towards) { return offsetOrigin(p, ng, towards); }
+  bool occludedSegment(Vec3 o, Vec3 target, Vec3& dir, float& tmax) const {
+    Vec3 d = target - o;
+    float len = length(d);
+    if (!(len > 0.f)) return false;
+    dir = d / len;
+    tmax = len;
+    return accel.occluded(o, dir, 0.f, tmax);
+  }
+  bool occludedDirection(Vec3 o, Vec3 d) const {
+    return accel.occluded(o, d, 0.f, std::numeric_limits<float>::infinity());
+  }
+
+  const Distribution1D& lightSelection() const { return lightSelect_; }
+  const std::vector<uint32_t>& infiniteLights() const { return infiniteLights_; }
+
+  EmbreeScene accel;
+
+ private:
+  void computeFaceNormals(uint32_t mesh);
+
+  Distribution1D lightSelect_;
+  std::vector<uint32_t> infiniteLights_;
+  std::vector<std::vector<Vec3>> faceNormals_;
+};
+
+}  // namespace invr

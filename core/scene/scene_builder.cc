@@ -1,0 +1,333 @@
+#include "core/scene/scene_builder.h"
+
+#include <map>
+#include <set>
+
+#include "core/error.h"
+#include "core/image/procedural.h"
+#include "core/io/job_io.h"
+#include "core/scene/zoo.h"
+
+namespace invr {
+
+namespace v1 = invr::v1;
+
+std::filesystem::path AssetResolver::resolve(const v1::AssetRef& ref, const std::string& field) const {
+  switch (ref.source_case()) {
+    case v1::AssetRef::kPath: {
+      if (ref.path().empty()) throw InputError(field + ".path: empty");
+      std::filesystem::path p(ref.path());
+      return p.is_absolute() ? p : baseDir / p;
+    }
+    case v1::AssetRef::kSha256:
+      if (!byHash) throw InputError(field + ".sha256: content-hash assets need the service (use 'path' for local files)");
+      return byHash(ref.sha256());
+    default: throw InputError(field + ": set either 'path' or 'sha256'");
+  }
+}
+
+namespace {
+
+[[noreturn]] void fail(const std::string& field, const std::string& why) { throw InputError(field + ": " + why); }
+
+Vec3 vec(const v1::Vec3& v, const std::string& field) {
+  Vec3 r(float(v.x()), float(v.y()), float(v.z()));
+  if (!std::isfinite(v.x()) || !std::isfinite(v.y()) || !std::isfinite(v.z())) fail(field, "not a finite vector");
+  return r;
+}
+
+Rgb rgb(const v1::Rgb& c, const std::string& field) {
+  if (!std::isfinite(c.r()) || !std::isfinite(c.g()) || !std::isfinite(c.b())) fail(field, "not a finite colour");
+  if (c.r() < 0 || c.g() < 0 || c.b() < 0) fail(field, "colour components must not be negative");
+  return Rgb(float(c.r()), float(c.g()), float(c.b()));
+}
+
+float optionalScale(bool has, double v, const std::string& field) {
+  if (!has) return 1.f;
+  if (!std::isfinite(v) || v < 0) fail(field, "must be a finite number >= 0");
+  return float(v);
+}
+
+Affine transformOf(const v1::Transform& t, const std::string& field) {
+  Vec3 s = t.has_scale() ? vec(t.scale(), field + ".scale") : Vec3(1.f);
+  if (s.x == 0.f || s.y == 0.f || s.z == 0.f) fail(field + ".scale", "components must be non-zero");
+  Vec3 r = vec(t.rotate_xyz_degrees(), field + ".rotate_xyz_degrees");
+  Vec3 tr = vec(t.translate(), field + ".translate");
+  return Affine::translate(tr) * Affine::rotate(2, r.z) * Affine::rotate(1, r.y) * Affine::rotate(0, r.x) * Affine::scale(s);
+}
+
+std::shared_ptr<const Image> loadTextureImage(const v1::Texture& t, const AssetResolver& assets, const std::string& field,
+                                              bool colour) {
+  if (t.has_procedural()) {
+    const auto& p = t.procedural();
+    ProceduralSpec spec;
+    spec.pattern = p.pattern();
+    spec.width = p.width() > 0 ? p.width() : 64;
+    spec.height = p.height() > 0 ? p.height() : spec.width;
+    if (p.has_color_a()) spec.a = rgb(p.color_a(), field + ".procedural.color_a");
+    if (p.has_color_b()) spec.b = rgb(p.color_b(), field + ".procedural.color_b");
+    spec.seed = p.seed();
+    try {
+      return std::make_shared<Image>(makeProceduralImage(spec));
+    } catch (const InputError& e) {
+      fail(field + ".procedural", e.what());
+    }
+  }
+  auto path = assets.resolve(t.image(), field + ".image");
+  try {
+    auto img = std::make_shared<Image>(readImage(path, colour));
+    for (float v : img->data())
+      if (!std::isfinite(v)) fail(field + ".image", "'" + path.string() + "' contains non-finite texels");
+    return img;
+  } catch (const InputError& e) {
+    fail(field + ".image", e.what());
+  }
+}
+
+Texture texture(const v1::Texture& t, const AssetResolver& assets, const std::string& field, bool colour, Rgb dflt) {
+  float scale = optionalScale(t.has_scale(), t.scale(), field + ".scale");
+  switch (t.source_case()) {
+    case v1::Texture::kConstant: return Texture(rgb(t.constant(), field + ".constant") * scale);
+    case v1::Texture::kValue:
+      if (!std::isfinite(t.value()) || t.value() < 0) fail(field + ".value", "must be a finite number >= 0");
+      return Texture(Rgb(float(t.value()) * scale));
+    case v1::Texture::kImage:
+    case v1::Texture::kProcedural: return Texture(loadTextureImage(t, assets, field, colour), scale);
+    default: return Texture(dflt * scale);
+  }
+}
+
+void checkRoughness(const Texture& t, const std::string& field) {
+  auto ok = [](float a) { return std::isfinite(a) && a > 0.f && a <= 1.f; };
+  if (t.isConstant()) {
+    if (!ok(t.constant().x)) fail(field, "GGX roughness must be in (0, 1] (got " + std::to_string(t.constant().x) + ")");
+  } else {
+    for (int y = 0; y < t.image()->height(); ++y)
+      for (int x = 0; x < t.image()->width(); ++x)
+        if (!ok(t.image()->at(x, y, 0))) fail(field, "GGX roughness texels must be in (0, 1]");
+  }
+}
+
+Material material(const v1::Material& m, const AssetResolver& assets, const std::string& field) {
+  Material out;
+  out.name = m.name();
+  switch (m.kind_case()) {
+    case v1::Material::kDiffuse:
+      out.kind = BsdfKind::Diffuse;
+      out.albedo = texture(m.diffuse().albedo(), assets, field + ".diffuse.albedo", true, Rgb(0.5f));
+      break;
+    case v1::Material::kRoughConductor: {
+      const auto& c = m.rough_conductor();
+      out.kind = BsdfKind::RoughConductor;
+      out.roughness = texture(c.roughness(), assets, field + ".rough_conductor.roughness", false, Rgb(0.1f));
+      checkRoughness(out.roughness, field + ".rough_conductor.roughness");
+      // Aluminium at roughly 650/550/450 nm unless given.
+      out.eta = c.has_eta() ? rgb(c.eta(), field + ".rough_conductor.eta") : Rgb(1.66f, 0.88f, 0.52f);
+      out.k = c.has_k() ? rgb(c.k(), field + ".rough_conductor.k") : Rgb(8.06f, 6.35f, 4.98f);
+      break;
+    }
+    case v1::Material::kRoughPlastic: {
+      const auto& p = m.rough_plastic();
+      out.kind = BsdfKind::RoughPlastic;
+      out.albedo = texture(p.albedo(), assets, field + ".rough_plastic.albedo", true, Rgb(0.5f));
+      out.roughness = texture(p.roughness(), assets, field + ".rough_plastic.roughness", false, Rgb(0.1f));
+      checkRoughness(out.roughness, field + ".rough_plastic.roughness");
+      out.ior = p.has_ior() ? float(p.ior()) : 1.5f;
+      if (!(out.ior > 1.f && out.ior < 10.f)) fail(field + ".rough_plastic.ior", "must be in (1, 10)");
+      break;
+    }
+    case v1::Material::kMirror:
+      out.kind = BsdfKind::Mirror;
+      out.reflectance = m.mirror().has_reflectance() ? rgb(m.mirror().reflectance(), field + ".mirror.reflectance") : Rgb(1.f);
+      break;
+    case v1::Material::kDielectric:
+      out.kind = BsdfKind::Dielectric;
+      out.ior = m.dielectric().has_ior() ? float(m.dielectric().ior()) : 1.5f;
+      if (!(out.ior > 0.f && out.ior < 10.f) || out.ior == 1.f) fail(field + ".dielectric.ior", "must be in (0, 10) and not 1");
+      break;
+    default: fail(field, "no material kind set (diffuse, rough_conductor, rough_plastic, mirror or dielectric)");
+  }
+  return out;
+}
+
+TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const std::string& field) {
+  switch (s.geometry_case()) {
+    case v1::Shape::kMesh: return loadMesh(assets.resolve(s.mesh(), field + ".mesh"));
+    case v1::Shape::kQuad: return makeQuad();
+    case v1::Shape::kBox: return makeBox();
+    case v1::Shape::kSphere: {
+      int rings = s.sphere().rings() > 0 ? s.sphere().rings() : 32;
+      if (rings < 2 || rings > 4096) fail(field + ".sphere.rings", "must be in 2..4096");
+      return makeSphere(rings);
+    }
+    case v1::Shape::kCylinder: {
+      int seg = s.cylinder().segments() > 0 ? s.cylinder().segments() : 64;
+      if (seg < 3 || seg > 65536) fail(field + ".cylinder.segments", "must be in 3..65536");
+      return makeCylinder(seg, s.cylinder().capped());
+    }
+    case v1::Shape::kTorusKnot: {
+      const auto& k = s.torus_knot();
+      int seg = k.segments() > 0 ? k.segments() : 256, tube = k.tube_segments() > 0 ? k.tube_segments() : 16;
+      double r = k.tube_radius() > 0 ? k.tube_radius() : 0.15;
+      if (seg < 8 || tube < 3 || seg > 65536 || tube > 4096) fail(field + ".torus_knot", "segments must be in 8..65536 and tube_segments in 3..4096");
+      if (!(r < 1.0)) fail(field + ".torus_knot.tube_radius", "must be in (0, 1)");
+      return makeTorusKnot(k.p() != 0 ? k.p() : 2, k.q() != 0 ? k.q() : 3, float(r), seg, tube);
+    }
+    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder or torus_knot)");
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& assets) {
+  auto scene = std::make_unique<Scene>();
+  scene->name = spec.name();
+  const std::string root = "scene";
+
+  int w = spec.film().width() > 0 ? spec.film().width() : 256;
+  int h = spec.film().height() > 0 ? spec.film().height() : w;
+  if (spec.film().width() < 0 || spec.film().height() < 0 || w > 16384 || h > 16384)
+    fail(root + ".film", "width and height must be in 1..16384");
+  scene->width = w;
+  scene->height = h;
+
+  std::map<std::string, int> materialIndex;
+  for (int i = 0; i < spec.materials_size(); ++i) {
+    const auto& m = spec.materials(i);
+    std::string field = root + ".materials[" + std::to_string(i) + "]";
+    if (m.name().empty()) fail(field + ".name", "every material needs a name");
+    field += " (" + m.name() + ")";
+    if (!materialIndex.emplace(m.name(), i).second) fail(field + ".name", "duplicate material name");
+    scene->materials.push_back(material(m, assets, field));
+  }
+
+  std::map<std::string, int> shapeIndex;
+  for (int i = 0; i < spec.shapes_size(); ++i) {
+    const auto& s = spec.shapes(i);
+    std::string field = root + ".shapes[" + std::to_string(i) + "]";
+    if (s.name().empty()) fail(field + ".name", "every shape needs a name");
+    field += " (" + s.name() + ")";
+    if (!shapeIndex.emplace(s.name(), i).second) fail(field + ".name", "duplicate shape name");
+    auto mit = materialIndex.find(s.material());
+    if (mit == materialIndex.end()) fail(field + ".material", "unknown material '" + s.material() + "'");
+    Affine xf = transformOf(s.transform(), field + ".transform");
+    TriangleMesh mesh;
+    try {
+      mesh = shapeMesh(s, assets, field);
+    } catch (const InputError& e) {
+      std::string what = e.what();
+      if (what.rfind(field, 0) == 0) throw;
+      fail(field, what);
+    }
+    mesh.transform(xf);
+    validateMesh(mesh, field);
+    scene->meshes.push_back(std::move(mesh));
+    scene->meshNames.push_back(s.name());
+    scene->meshMaterial.push_back(mit->second);
+    scene->meshLight.push_back(-1);
+  }
+
+  for (int i = 0; i < spec.lights_size(); ++i) {
+    const auto& l = spec.lights(i);
+    std::string field = root + ".lights[" + std::to_string(i) + "]";
+    if (l.name().empty()) fail(field + ".name", "every light needs a name");
+    field += " (" + l.name() + ")";
+    Light out;
+    out.name = l.name();
+    out.scale = optionalScale(l.has_scale(), l.scale(), field + ".scale");
+    switch (l.kind_case()) {
+      case v1::Light::kArea: {
+        auto it = shapeIndex.find(l.area().shape());
+        if (it == shapeIndex.end()) fail(field + ".area.shape", "unknown shape '" + l.area().shape() + "'");
+        if (scene->meshLight[size_t(it->second)] >= 0) fail(field + ".area.shape", "shape '" + l.area().shape() + "' already has a light");
+        out.kind = LightKind::Area;
+        out.mesh = uint32_t(it->second);
+        out.radiance = rgb(l.area().radiance(), field + ".area.radiance");
+        out.twoSided = l.area().two_sided();
+        double area = 0;
+        const auto& m = scene->meshes[out.mesh];
+        for (size_t t = 0; t < m.triangleCount(); ++t) area += m.triangleArea(t);
+        if (!(area > 1e-12)) fail(field + ".area.shape", "zero-area light");
+        scene->meshLight[out.mesh] = int(scene->lights.size());
+        break;
+      }
+      case v1::Light::kPoint:
+        out.kind = LightKind::Point;
+        out.position = vec(l.point().position(), field + ".point.position");
+        out.intensity = rgb(l.point().intensity(), field + ".point.intensity");
+        break;
+      case v1::Light::kSpot: {
+        const auto& s = l.spot();
+        out.kind = LightKind::Spot;
+        out.position = vec(s.position(), field + ".spot.position");
+        Vec3 target = vec(s.target(), field + ".spot.target");
+        if (lengthSquared(target - out.position) == 0.f) fail(field + ".spot.target", "must differ from position");
+        out.direction = normalize(target - out.position);
+        out.intensity = rgb(s.intensity(), field + ".spot.intensity");
+        double outer = s.cone_outer_degrees() > 0 ? s.cone_outer_degrees() : 30.0;
+        double inner = s.cone_inner_degrees() > 0 ? s.cone_inner_degrees() : 0.8 * outer;
+        if (!(outer < 180.0)) fail(field + ".spot.cone_outer_degrees", "must be in (0, 180)");
+        if (!(inner <= outer)) fail(field + ".spot.cone_inner_degrees", "must not exceed cone_outer_degrees");
+        out.cosOuter = float(std::cos(outer * M_PI / 180.0));
+        out.cosInner = float(std::cos(inner * M_PI / 180.0));
+        if (out.cosInner <= out.cosOuter) out.cosInner = std::nextafter(out.cosOuter, 1.f);
+        break;
+      }
+      case v1::Light::kEnvironment: {
+        const auto& t = l.environment().radiance();
+        if (!t.has_image() && !t.has_procedural()) fail(field + ".environment.radiance", "needs an image or procedural texture (use constant_environment for a constant)");
+        out.kind = LightKind::Environment;
+        out.envImage = loadTextureImage(t, assets, field + ".environment.radiance", true);
+        if (t.has_scale()) out.scale *= optionalScale(true, t.scale(), field + ".environment.radiance.scale");
+        buildEnvironmentDistribution(out);
+        break;
+      }
+      case v1::Light::kConstantEnvironment:
+        out.kind = LightKind::ConstantEnvironment;
+        out.radiance = rgb(l.constant_environment().radiance(), field + ".constant_environment.radiance");
+        break;
+      default: fail(field, "no light kind set (area, point, spot, environment or constant_environment)");
+    }
+    scene->lights.push_back(std::move(out));
+  }
+
+  if (spec.views_size() == 0) fail(root + ".views", "at least one camera view is required");
+  for (int i = 0; i < spec.views_size(); ++i) {
+    const auto& c = spec.views(i);
+    std::string field = root + ".views[" + std::to_string(i) + "]";
+    Vec3 eye = vec(c.eye(), field + ".eye"), target = vec(c.target(), field + ".target");
+    Vec3 up = c.has_up() ? vec(c.up(), field + ".up") : Vec3(0, 1, 0);
+    if (lengthSquared(target - eye) == 0.f) fail(field + ".target", "must differ from eye");
+    if (lengthSquared(cross(normalize(target - eye), up)) < 1e-8f) fail(field + ".up", "must not be parallel to the view direction");
+    double fov = c.fov_y_degrees() != 0 ? c.fov_y_degrees() : 40.0;
+    if (!(fov > 0 && fov < 180)) fail(field + ".fov_y_degrees", "must be in (0, 180)");
+    Camera cam = Camera::lookAt(eye, target, up, float(fov));
+    cam.name = c.name();
+    scene->cameras.push_back(cam);
+  }
+  scene->finalize();
+  return scene;
+}
+
+std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver& assets) {
+  switch (job.scene_source_case()) {
+    case v1::JobSpec::kZoo: return buildScene(zooScene(job.zoo()), assets);
+    case v1::JobSpec::kScene: return buildScene(job.scene(), assets);
+    default: throw InputError("job: set either 'zoo' (a built-in scene name) or 'scene'");
+  }
+}
+
+RenderOptions renderOptionsFrom(const v1::RenderSettings& r) {
+  validateRenderSettings(r);
+  RenderOptions o;
+  o.spp = r.spp() > 0 ? r.spp() : 16;
+  o.maxDepth = r.max_depth() > 0 ? r.max_depth() : 1;
+  o.estimator = r.estimator() == v1::ESTIMATOR_RIS ? LightEstimator::Ris : LightEstimator::NeeMis;
+  o.risCandidates = r.ris_candidates() > 0 ? r.ris_candidates() : 8;
+  o.risVisibilityInTarget = r.ris_visibility_in_target();
+  o.russianRouletteDepth = r.russian_roulette_depth() > 0 ? r.russian_roulette_depth() : 3;
+  o.seed = r.seed();
+  return o;
+}
+
+}  // namespace invr

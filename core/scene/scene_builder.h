@@ -1,0 +1,31 @@
+// Builds the renderer's Scene from its protobuf description, validating every field a user can
+// get wrong; errors name the field path, e.g. "scene.shapes[2] (floor).material: unknown material".
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+
+#include "core/render/render_options.h"
+#include "core/scene/scene.h"
+#include "invr/v1/job.pb.h"
+#include "invr/v1/scene.pb.h"
+
+namespace invr {
+
+struct AssetResolver {
+  std::filesystem::path baseDir = ".";  // for AssetRef.path
+  // For AssetRef.sha256 (the service's asset store); unset means hashes are not accepted.
+  std::function<std::filesystem::path(const std::string&)> byHash;
+  std::filesystem::path resolve(const invr::v1::AssetRef& ref, const std::string& field) const;
+};
+
+std::unique_ptr<Scene> buildScene(const invr::v1::Scene& spec, const AssetResolver& assets = {});
+
+// The job's scene: its zoo entry or inline scene.
+std::unique_ptr<Scene> buildJobScene(const invr::v1::JobSpec& job, const AssetResolver& assets = {});
+
+// Defaults applied for zero-valued fields (proto3 has no presence for scalars).
+RenderOptions renderOptionsFrom(const invr::v1::RenderSettings& settings);
+
+}  // namespace invr

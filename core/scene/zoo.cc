@@ -1,0 +1,346 @@
+#include "core/scene/zoo.h"
+
+#include <array>
+#include <cmath>
+#include <functional>
+
+#include "core/error.h"
+
+namespace invr {
+
+namespace v1 = invr::v1;
+
+namespace {
+
+// Small builders so each scene reads like a description.
+struct SceneMaker {
+  v1::Scene s;
+
+  static void set(v1::Vec3* v, double x, double y, double z) { v->set_x(x); v->set_y(y); v->set_z(z); }
+  static void set(v1::Rgb* c, double r, double g, double b) { c->set_r(r); c->set_g(g); c->set_b(b); }
+
+  v1::Material* diffuse(const std::string& name, double r, double g, double b) {
+    auto* m = s.add_materials();
+    m->set_name(name);
+    set(m->mutable_diffuse()->mutable_albedo()->mutable_constant(), r, g, b);
+    return m;
+  }
+  v1::Material* diffuseTexture(const std::string& name, const std::string& pattern, int res, uint64_t seed,
+                               double ar, double ag, double ab, double br, double bg, double bb) {
+    auto* m = s.add_materials();
+    m->set_name(name);
+    auto* p = m->mutable_diffuse()->mutable_albedo()->mutable_procedural();
+    p->set_pattern(pattern);
+    p->set_width(res);
+    p->set_seed(seed);
+    set(p->mutable_color_a(), ar, ag, ab);
+    set(p->mutable_color_b(), br, bg, bb);
+    return m;
+  }
+  v1::Shape* shape(const std::string& name, const std::string& material) {
+    auto* sh = s.add_shapes();
+    sh->set_name(name);
+    sh->set_material(material);
+    return sh;
+  }
+  // A unit primitive placed with scale, Euler rotation (degrees) and translation.
+  static void place(v1::Shape* sh, std::array<double, 3> scale, std::array<double, 3> rot, std::array<double, 3> tr) {
+    auto* t = sh->mutable_transform();
+    set(t->mutable_scale(), scale[0], scale[1], scale[2]);
+    set(t->mutable_rotate_xyz_degrees(), rot[0], rot[1], rot[2]);
+    set(t->mutable_translate(), tr[0], tr[1], tr[2]);
+  }
+  v1::Shape* quad(const std::string& name, const std::string& material, std::array<double, 3> scale,
+                  std::array<double, 3> rot, std::array<double, 3> tr) {
+    auto* sh = shape(name, material);
+    sh->mutable_quad();
+    place(sh, scale, rot, tr);
+    return sh;
+  }
+  void areaLight(const std::string& name, const std::string& shapeName, double r, double g, double b) {
+    auto* l = s.add_lights();
+    l->set_name(name);
+    l->mutable_area()->set_shape(shapeName);
+    set(l->mutable_area()->mutable_radiance(), r, g, b);
+  }
+  void spot(const std::string& name, std::array<double, 3> pos, std::array<double, 3> target, double intensity,
+            double outer, double inner) {
+    auto* l = s.add_lights();
+    l->set_name(name);
+    auto* sp = l->mutable_spot();
+    set(sp->mutable_position(), pos[0], pos[1], pos[2]);
+    set(sp->mutable_target(), target[0], target[1], target[2]);
+    set(sp->mutable_intensity(), intensity, intensity * 0.95, intensity * 0.85);
+    sp->set_cone_outer_degrees(outer);
+    sp->set_cone_inner_degrees(inner);
+  }
+  void point(const std::string& name, std::array<double, 3> pos, double intensity) {
+    auto* l = s.add_lights();
+    l->set_name(name);
+    set(l->mutable_point()->mutable_position(), pos[0], pos[1], pos[2]);
+    set(l->mutable_point()->mutable_intensity(), intensity, intensity, intensity);
+  }
+  void view(const std::string& name, std::array<double, 3> eye, std::array<double, 3> target, double fov) {
+    auto* c = s.add_views();
+    c->set_name(name);
+    set(c->mutable_eye(), eye[0], eye[1], eye[2]);
+    set(c->mutable_target(), target[0], target[1], target[2]);
+    set(c->mutable_up(), 0, 1, 0);
+    c->set_fov_y_degrees(fov);
+  }
+  void film(int w, int h) { s.mutable_film()->set_width(w); s.mutable_film()->set_height(h); }
+};
+
+// Quad orientations (the unit quad faces +z).
+constexpr std::array<double, 3> kFaceUp{-90, 0, 0}, kFaceDown{90, 0, 0}, kFacePosZ{0, 0, 0}, kFaceNegZ{0, 180, 0},
+    kFacePosX{0, 90, 0}, kFaceNegX{0, -90, 0};
+
+v1::Scene cornell() {
+  SceneMaker m;
+  m.s.set_name("cornell");
+  m.diffuse("white", 0.73, 0.73, 0.73);
+  m.diffuse("red", 0.63, 0.065, 0.05);
+  m.diffuse("green", 0.14, 0.45, 0.091);
+  m.diffuse("light", 0.78, 0.78, 0.78);
+  m.quad("floor", "white", {1, 1, 1}, kFaceUp, {0, 0, 0});
+  m.quad("ceiling", "white", {1, 1, 1}, kFaceDown, {0, 2, 0});
+  m.quad("back", "white", {1, 1, 1}, kFacePosZ, {0, 1, -1});
+  m.quad("left", "red", {1, 1, 1}, kFacePosX, {-1, 1, 0});
+  m.quad("right", "green", {1, 1, 1}, kFaceNegX, {1, 1, 0});
+  m.quad("light", "light", {0.25, 0.25, 1}, kFaceDown, {0, 1.985, 0});
+  auto* tall = m.shape("tall_box", "white");
+  tall->mutable_box();
+  SceneMaker::place(tall, {0.3, 0.6, 0.3}, {0, 20, 0}, {-0.33, 0.6, -0.3});
+  auto* small = m.shape("short_box", "white");
+  small->mutable_box();
+  SceneMaker::place(small, {0.3, 0.3, 0.3}, {0, -18, 0}, {0.33, 0.3, 0.32});
+  m.areaLight("ceiling_light", "light", 12.0, 8.6, 2.9);
+  m.view("front", {0, 1, 3.9}, {0, 1, 0}, 38);
+  m.film(256, 256);
+  return m.s;
+}
+
+v1::Scene oxalis() {
+  SceneMaker m;
+  m.s.set_name("oxalis");
+  m.diffuse("wall", 0.6, 0.58, 0.55);
+  m.diffuse("floor", 0.35, 0.3, 0.25);
+  m.diffuseTexture("painting", "painting", 128, 11, 0.15, 0.4, 0.15, 0.75, 0.65, 0.45);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  m.quad("wall", "wall", {3, 2, 1}, kFacePosZ, {0, 2, -0.01});
+  m.quad("painting", "painting", {0.6, 0.45, 1}, kFacePosZ, {0, 1.3, 0});
+  // Two bright, narrow spotlights pick out parts of the painting; a dim fill lights the rest.
+  m.spot("spot_left", {-1.0, 2.4, 1.4}, {-0.3, 1.45, 0}, 60.0, 9, 6);
+  m.spot("spot_right", {1.1, 0.5, 1.3}, {0.3, 1.1, 0}, 45.0, 8, 5);
+  m.point("fill", {0.2, 1.6, 2.2}, 0.25);
+  m.view("front", {0, 1.3, 2.4}, {0, 1.3, 0}, 30);
+  m.film(256, 192);
+  return m.s;
+}
+
+v1::Scene ajar() {
+  SceneMaker m;
+  m.s.set_name("ajar");
+  m.diffuse("wall", 0.65, 0.62, 0.58);
+  m.diffuse("floor", 0.45, 0.35, 0.25);
+  m.diffuse("door", 0.5, 0.35, 0.2);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.diffuseTexture("painting", "painting", 128, 5, 0.2, 0.45, 0.2, 0.8, 0.7, 0.5);
+  // Main room x in [-2, 2], y in [0, 2.5], z in [-2, 2]; the door is in the wall x = 2.
+  m.quad("floor", "floor", {2, 2, 1}, kFaceUp, {0, 0, 0});
+  m.quad("ceiling", "wall", {2, 2, 1}, kFaceDown, {0, 2.5, 0});
+  m.quad("back", "wall", {2, 1.25, 1}, kFacePosZ, {0, 1.25, -2});
+  m.quad("front", "wall", {2, 1.25, 1}, kFaceNegZ, {0, 1.25, 2});
+  m.quad("left", "wall", {2, 1.25, 1}, kFacePosX, {-2, 1.25, 0});
+  // Wall x = 2 with a door opening z in [-0.5, 0.5], y in [0, 2].
+  m.quad("right_a", "wall", {0.75, 1.25, 1}, kFaceNegX, {2, 1.25, -1.25});
+  m.quad("right_b", "wall", {0.75, 1.25, 1}, kFaceNegX, {2, 1.25, 1.25});
+  m.quad("right_top", "wall", {0.5, 0.25, 1}, kFaceNegX, {2, 2.25, 0});
+  // Door hinged at z = -0.5, opened 10 degrees into the next room: a thin wedge of light.
+  {
+    double a = 10.0 * M_PI / 180.0;
+    auto* door = m.shape("door", "door");
+    door->mutable_box();
+    SceneMaker::place(door, {0.02, 0.99, 0.5}, {0, -10.0, 0},
+                      {2.0 + 0.02 + 0.5 * std::sin(a), 1.0, -0.5 + 0.5 * std::cos(a)});
+  }
+  // Next room x in [2, 4]: five faces, the bright light on its far wall.
+  m.quad("next_floor", "floor", {1, 2, 1}, kFaceUp, {3, 0, 0});
+  m.quad("next_ceiling", "wall", {1, 2, 1}, kFaceDown, {3, 2.5, 0});
+  m.quad("next_back", "wall", {1, 1.25, 1}, kFacePosZ, {3, 1.25, -2});
+  m.quad("next_front", "wall", {1, 1.25, 1}, kFaceNegZ, {3, 1.25, 2});
+  m.quad("next_far", "wall", {2, 1.25, 1}, kFaceNegX, {4, 1.25, 0});
+  m.quad("bright", "emitter", {0.4, 0.4, 1}, kFaceNegX, {3.98, 1.2, 0.6});
+  m.areaLight("bright_light", "bright", 400, 380, 340);
+  // Painting on the back wall, and a dim fill light near the ceiling of the main room.
+  m.quad("painting", "painting", {0.8, 0.6, 1}, kFacePosZ, {0.2, 1.3, -1.99});
+  m.quad("fill", "emitter", {0.15, 0.15, 1}, kFaceDown, {-1.2, 2.49, 0.5});
+  m.areaLight("fill_light", "fill", 10.0, 10.0, 10.0);
+  m.view("room", {-1.4, 1.3, 1.8}, {0.6, 1.1, -1.2}, 50);
+  m.film(256, 192);
+  return m.s;
+}
+
+v1::Scene mirror() {
+  SceneMaker m;
+  m.s.set_name("mirror");
+  m.diffuse("floor", 0.5, 0.5, 0.5);
+  m.diffuse("red", 0.7, 0.15, 0.1);
+  m.diffuse("blue", 0.15, 0.25, 0.7);
+  m.diffuse("yellow", 0.75, 0.65, 0.15);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  auto* mir = m.s.add_materials();
+  mir->set_name("mirror");
+  mir->mutable_rough_conductor()->mutable_roughness()->set_value(0.08);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  m.quad("mirror", "mirror", {1.6, 1.0, 1}, kFacePosZ, {0, 1.0, -1.2});
+  auto* sphere = m.shape("sphere", "red");
+  sphere->mutable_sphere();
+  SceneMaker::place(sphere, {0.3, 0.3, 0.3}, {0, 0, 0}, {-0.7, 0.3, 0.0});
+  auto* box = m.shape("box", "blue");
+  box->mutable_box();
+  SceneMaker::place(box, {0.25, 0.25, 0.25}, {0, 30, 0}, {0.0, 0.25, -0.3});
+  auto* cyl = m.shape("cylinder", "yellow");
+  cyl->mutable_cylinder()->set_capped(true);
+  SceneMaker::place(cyl, {0.2, 0.2, 0.4}, {-90, 0, 0}, {0.7, 0.4, 0.1});
+  m.quad("light", "emitter", {0.5, 0.5, 1}, kFaceDown, {0, 2.6, 0.8});
+  m.areaLight("top", "light", 12, 12, 12);
+  m.view("front", {0.4, 1.2, 2.6}, {0, 0.7, -1.0}, 42);
+  m.film(256, 192);
+  return m.s;
+}
+
+v1::Scene backlit() {
+  SceneMaker m;
+  m.s.set_name("backlit");
+  m.diffuseTexture("object", "checker", 64, 3, 0.8, 0.75, 0.7, 0.25, 0.35, 0.55);
+  auto* obj = m.shape("object", "object");
+  obj->mutable_sphere();
+  SceneMaker::place(obj, {0.8, 0.8, 0.8}, {0, 0, 0}, {0, 0, 0});
+  auto* env = m.s.add_lights();
+  env->set_name("sky");
+  auto* p = env->mutable_environment()->mutable_radiance()->mutable_procedural();
+  p->set_pattern("backlit_sky");
+  p->set_width(512);
+  p->set_height(256);
+  SceneMaker::set(p->mutable_color_a(), 40, 38, 34);
+  SceneMaker::set(p->mutable_color_b(), 0.25, 0.3, 0.4);
+  // 16 views on a ring; view 0 looks along +z, straight into the light behind the object.
+  for (int i = 0; i < 16; ++i) {
+    double a = 2.0 * M_PI * i / 16.0;
+    m.view("ring" + std::to_string(i), {-3.0 * std::sin(a), 0.6, -3.0 * std::cos(a)}, {0, 0, 0}, 32);
+  }
+  m.film(128, 128);
+  return m.s;
+}
+
+v1::Scene tree() {
+  SceneMaker m;
+  m.s.set_name("tree");
+  m.diffuse("ground", 0.6, 0.6, 0.6);
+  m.diffuse("bark", 0.35, 0.22, 0.12);
+  m.diffuse("leaves", 0.2, 0.5, 0.15);
+  m.diffuse("board", 0.4, 0.4, 0.4);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.quad("ground", "ground", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* trunk = m.shape("trunk", "bark");
+  trunk->mutable_cylinder()->set_capped(true);
+  SceneMaker::place(trunk, {0.06, 0.06, 0.5}, {-90, 0, 0}, {0, 0.5, 0});
+  auto* b1 = m.shape("branch_a", "bark");
+  b1->mutable_cylinder()->set_capped(true);
+  SceneMaker::place(b1, {0.035, 0.035, 0.3}, {-90, 0, 40}, {-0.18, 1.05, 0});
+  auto* b2 = m.shape("branch_b", "bark");
+  b2->mutable_cylinder()->set_capped(true);
+  SceneMaker::place(b2, {0.035, 0.035, 0.28}, {-90, 0, -35}, {0.16, 1.0, 0.05});
+  const double crowns[][4] = {{0, 1.25, 0, 0.28}, {-0.38, 1.25, 0.05, 0.2}, {0.34, 1.2, 0.08, 0.2}};
+  for (int i = 0; i < 3; ++i) {
+    auto* c = m.shape("crown_" + std::to_string(i), "leaves");
+    c->mutable_sphere()->set_rings(24);
+    SceneMaker::place(c, {crowns[i][3], crowns[i][3], crowns[i][3]}, {0, 0, 0}, {crowns[i][0], crowns[i][1], crowns[i][2]});
+  }
+  // A small bright light casts the tree's shadow; a large light is mostly hidden behind a board.
+  m.quad("small_light", "emitter", {0.08, 0.08, 1}, kFaceDown, {0.9, 2.6, 0.6});
+  m.areaLight("small", "small_light", 300, 290, 270);
+  m.quad("large_light", "emitter", {0.8, 0.8, 1}, kFaceDown, {-1.2, 2.8, -1.0});
+  m.areaLight("large", "large_light", 6, 6, 7);
+  m.quad("board", "board", {1.1, 1.1, 1}, kFaceUp, {-1.1, 2.3, -0.9});
+  m.view("front", {0.3, 1.3, 3.2}, {-0.2, 0.5, 0}, 45);
+  m.film(256, 192);
+  return m.s;
+}
+
+v1::Scene knot() {
+  SceneMaker m;
+  m.s.set_name("knot");
+  m.diffuse("floor", 0.55, 0.55, 0.55);
+  m.diffuse("knot", 0.75, 0.35, 0.2);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* k = m.shape("knot", "knot");
+  k->mutable_torus_knot();
+  SceneMaker::place(k, {0.6, 0.6, 0.6}, {0, 0, 0}, {0, 0.75, 0});
+  m.spot("key", {1.2, 2.8, 1.2}, {0, 0.5, 0}, 30.0, 25, 18);
+  m.point("fill_a", {-1.5, 1.0, 1.5}, 0.4);
+  m.point("fill_b", {0.0, 1.5, -1.8}, 0.3);
+  m.view("front", {0, 1.2, 3.0}, {0, 0.6, 0}, 40);
+  m.film(256, 192);
+  return m.s;
+}
+
+v1::Scene spot() {
+  SceneMaker m;
+  m.s.set_name("spot");
+  m.diffuse("floor", 0.5, 0.5, 0.5);
+  m.diffuseTexture("object", "painting", 128, 21, 0.2, 0.5, 0.2, 0.8, 0.7, 0.5);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* o = m.shape("object", "object");
+  o->mutable_sphere();
+  SceneMaker::place(o, {0.6, 0.6, 0.6}, {0, 0, 0}, {0, 0.6, 0});
+  m.spot("spot", {0.6, 2.5, 1.0}, {0.0, 0.6, 0}, 25.0, 14, 10);
+  auto* amb = m.s.add_lights();
+  amb->set_name("ambient");
+  SceneMaker::set(amb->mutable_constant_environment()->mutable_radiance(), 0.05, 0.055, 0.06);
+  m.view("front", {0, 1.0, 2.6}, {0, 0.55, 0}, 40);
+  m.film(256, 192);
+  return m.s;
+}
+
+struct ZooDef {
+  ZooEntry entry;
+  std::function<v1::Scene()> build;
+};
+
+const std::vector<ZooDef>& zoo() {
+  static const std::vector<ZooDef> defs = {
+      {{"cornell", "Cornell box; wall albedos (sanity, fast)"}, cornell},
+      {{"oxalis", "textured painting under two bright spots and a dim fill light"}, oxalis},
+      {{"ajar", "painting in a room lit through a nearly closed door plus a dim fill"}, ajar},
+      {{"mirror", "three diffuse objects in front of a glossy mirror"}, mirror},
+      {{"backlit", "textured sphere under an environment lit from behind, 16 views"}, backlit},
+      {{"tree", "tree-like object, a small light and an occluded large light"}, tree},
+      {{"knot", "torus knot under a bright spot and dim fills"}, knot},
+      {{"spot", "textured object under a bright spot and a dim ambient light"}, spot},
+  };
+  return defs;
+}
+
+}  // namespace
+
+const std::vector<ZooEntry>& zooEntries() {
+  static const std::vector<ZooEntry> entries = [] {
+    std::vector<ZooEntry> e;
+    for (const auto& d : zoo()) e.push_back(d.entry);
+    return e;
+  }();
+  return entries;
+}
+
+v1::Scene zooScene(const std::string& name) {
+  std::string known;
+  for (const auto& d : zoo()) {
+    if (d.entry.name == name) return d.build();
+    known += (known.empty() ? "" : ", ") + d.entry.name;
+  }
+  throw InputError("unknown scene '" + name + "' (zoo scenes: " + known + ")");
+}
+
+}  // namespace invr

@@ -1,0 +1,66 @@
+// Job JSON errors name the field (path and line:column) and never crash.
+#include "core/io/job_io.h"
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+
+namespace invr {
+namespace {
+
+std::string errorOf(const std::string& json) {
+  try {
+    parseJobJson(json, "job.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+TEST(JobJson, ValidJobRoundTrips) {
+  auto job = parseJobJson(R"({"name": "a", "zoo": "cornell", "render": {"spp": 4, "estimator": "ESTIMATOR_RIS"}})");
+  EXPECT_EQ(job.zoo(), "cornell");
+  EXPECT_EQ(job.render().spp(), 4);
+  auto again = parseJobJson(jobToJson(job));
+  EXPECT_EQ(again.SerializeAsString(), job.SerializeAsString());
+}
+
+TEST(JobJson, UnknownFieldNamesPathAndLine) {
+  std::string e = errorOf("{\n  \"zoo\": \"cornell\",\n  \"render\": {\n    \"spq\": 4\n  }\n}");
+  EXPECT_TRUE(contains(e, "render.spq: unknown field")) << e;
+  EXPECT_TRUE(contains(e, "job.json:4:")) << e;
+}
+
+TEST(JobJson, WrongTypeNamesField) {
+  std::string e = errorOf(R"({"render": {"spp": "many"}})");
+  EXPECT_TRUE(contains(e, "render.spp")) << e;
+  e = errorOf(R"({"render": {"estimator": "ESTIMATOR_MAGIC"}})");
+  EXPECT_TRUE(contains(e, "render.estimator")) << e;
+}
+
+TEST(JobJson, NestedUnknownFieldNamesIndexedPath) {
+  std::string e = errorOf(R"({"scene": {"lights": [{"name": "a"}, {"name": "b", "colour": 1}]}})");
+  EXPECT_TRUE(contains(e, "scene.lights[1].colour: unknown field")) << e;
+}
+
+TEST(JobJson, MalformedJsonGivesLocation) {
+  std::string e = errorOf("{\n  \"zoo\": \"cornell\",,\n}");
+  EXPECT_TRUE(contains(e, "job.json:2:")) << e;
+  EXPECT_FALSE(errorOf("").empty());
+  EXPECT_FALSE(errorOf("[1, 2]").empty());
+}
+
+TEST(JobJson, NegativeSppNamesField) {
+  std::string e = errorOf(R"({"zoo": "cornell", "render": {"spp": -3}})");
+  EXPECT_TRUE(contains(e, "render.spp")) << e;
+  EXPECT_TRUE(contains(e, "-3")) << e;
+}
+
+TEST(JobJson, MissingFileIsAnError) {
+  EXPECT_THROW(loadJobFile("/nonexistent/job.json"), InputError);
+}
+
+}  // namespace
+}  // namespace invr

@@ -1,0 +1,127 @@
+#include "core/math/sampling.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "core/math/rng.h"
+
+namespace invr {
+
+TEST(Rng, SameKeySameStreamDifferentKeyDifferentStream) {
+  Sampler a(RngKey{1, 2, 3, 4, 5}), b(RngKey{1, 2, 3, 4, 5}), c(RngKey{1, 2, 3, 4, 6});
+  for (int i = 0; i < 16; ++i) {
+    float va = a.next1D(), vb = b.next1D(), vc = c.next1D();
+    EXPECT_EQ(va, vb);
+    EXPECT_NE(va, vc);
+    EXPECT_GE(va, 0.f);
+    EXPECT_LT(va, 1.f);
+  }
+}
+
+TEST(Rng, UniformMeanAndVariance) {
+  // Mean of U(0,1) is 1/2 with SE sqrt(1/12/n); variance 1/12.
+  const int n = 200000;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < n; ++i) {
+    Sampler s(RngKey{7, 0, 0, uint64_t(i), 0});
+    double u = s.next1D();
+    sum += u;
+    sum2 += u * u;
+  }
+  double mean = sum / n, var = sum2 / n - mean * mean;
+  EXPECT_NEAR(mean, 0.5, 4 * std::sqrt(1.0 / 12 / n));
+  EXPECT_NEAR(var, 1.0 / 12, 0.002);
+}
+
+TEST(Distribution1D, PmfMatchesWeightsAndSamplingFrequencies) {
+  std::vector<float> w = {1, 0, 3, 6};
+  Distribution1D d(w);
+  EXPECT_FLOAT_EQ(d.pmf(0), 0.1f);
+  EXPECT_FLOAT_EQ(d.pmf(1), 0.f);
+  EXPECT_FLOAT_EQ(d.pmf(3), 0.6f);
+  std::vector<int> counts(4);
+  const int n = 100000;
+  Sampler s(RngKey{3});
+  for (int i = 0; i < n; ++i) counts[d.sample(s.next1D())]++;
+  EXPECT_EQ(counts[1], 0);
+  for (int i : {0, 2, 3}) {
+    double p = d.pmf(size_t(i));
+    EXPECT_NEAR(counts[size_t(i)] / double(n), p, 4 * std::sqrt(p * (1 - p) / n));
+  }
+}
+
+TEST(Distribution2D, PdfIntegratesToOneAndMatchesSampling) {
+  const int w = 8, h = 4;
+  std::vector<float> weights(w * h);
+  for (int i = 0; i < w * h; ++i) weights[size_t(i)] = float((i * 7) % 5);
+  Distribution2D d(weights, w, h);
+  double integral = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) integral += d.pdf({(x + 0.5f) / w, (y + 0.5f) / h}) / (w * h);
+  EXPECT_NEAR(integral, 1.0, 1e-5);
+  Sampler s(RngKey{9});
+  for (int i = 0; i < 1000; ++i) {
+    float pdf;
+    Vec2 p = d.sample({s.next1D(), s.next1D()}, &pdf);
+    EXPECT_GT(pdf, 0.f);
+    EXPECT_NEAR(pdf, d.pdf(p), 1e-4f * pdf);
+  }
+}
+
+TEST(Warps, QuarterPiSinCosMatchesLibm) {
+  for (int i = -1000; i <= 1000; ++i) {
+    float x = float(i) / 1000.f * (kPi / 4.f), s, c;
+    sinCosQuarterPi(x, &s, &c);
+    EXPECT_NEAR(s, std::sin(double(x)), 2e-7);
+    EXPECT_NEAR(c, std::cos(double(x)), 2e-7);
+  }
+}
+
+TEST(Warps, CosineHemisphereMatchesItsPdf) {
+  // Histogram over (cos theta, phi) cells against the integral of cos(theta)/pi over each cell.
+  const int nc = 8, np = 16, n = 400000;
+  std::vector<double> counts(nc * np);
+  Sampler s(RngKey{5});
+  for (int i = 0; i < n; ++i) {
+    Vec3 v = sampleCosineHemisphere({s.next1D(), s.next1D()});
+    int ci = std::min(int(v.z * nc), nc - 1);
+    double phi = std::atan2(v.y, v.x) + M_PI;
+    int pj = std::min(int(phi / (2 * M_PI) * np), np - 1);
+    counts[size_t(ci * np + pj)]++;
+  }
+  for (int ci = 0; ci < nc; ++ci) {
+    double c0 = double(ci) / nc, c1 = double(ci + 1) / nc;
+    double p = (c1 * c1 - c0 * c0) / np;  // integral of cos/pi dcos dphi over the cell
+    for (int pj = 0; pj < np; ++pj)
+      EXPECT_NEAR(counts[size_t(ci * np + pj)] / n, p, 4 * std::sqrt(p * (1 - p) / n)) << ci << "," << pj;
+  }
+}
+
+TEST(Warps, TriangleMapIsUniform) {
+  // Uniform on the triangle: each of the 4 midpoint sub-triangles gets 1/4 of the samples.
+  const int n = 200000;
+  int counts[4] = {0, 0, 0, 0};
+  Sampler s(RngKey{6});
+  for (int i = 0; i < n; ++i) {
+    Vec2 b = sampleUniformTriangle({s.next1D(), s.next1D()});
+    float b0 = 1.f - b.x - b.y;
+    ASSERT_GE(b.x, 0.f);
+    ASSERT_GE(b.y, 0.f);
+    ASSERT_GE(b0, -1e-6f);
+    counts[b.x > 0.5f ? 0 : b.y > 0.5f ? 1 : b0 > 0.5f ? 2 : 3]++;
+  }
+  for (int k = 0; k < 4; ++k) EXPECT_NEAR(counts[k] / double(n), 0.25, 4 * std::sqrt(0.25 * 0.75 / n));
+}
+
+TEST(Warps, CosineHemisphereStaysOnUnitHemisphere) {
+  Sampler s(RngKey{4});
+  for (int i = 0; i < 1000; ++i) {
+    Vec3 v = sampleCosineHemisphere({s.next1D(), s.next1D()});
+    EXPECT_NEAR(length(v), 1.f, 1e-5f);
+    EXPECT_GE(v.z, 0.f);
+  }
+}
+
+}  // namespace invr

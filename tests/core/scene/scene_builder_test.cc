@@ -1,0 +1,139 @@
+// Bad scene input: every mistake gives an InputError naming the field or file, never a crash.
+#include "core/scene/scene_builder.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+#include "core/error.h"
+#include "core/scene/zoo.h"
+#include "test_util.h"
+
+namespace invr {
+namespace {
+
+std::filesystem::path tmpDir() {
+  auto dir = std::filesystem::temp_directory_path() / ("invr_scene_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+std::string errorOf(const std::string& sceneJson, const AssetResolver& assets = {}) {
+  try {
+    auto job = parseJobJson("{\"scene\": " + sceneJson + "}", "job.json");
+    buildJobScene(job, assets);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string withShape(const std::string& shapeJson, const std::string& extraLights = "") {
+  return R"({"materials": [{"name": "m", "diffuse": {}}], "shapes": [)" + shapeJson + R"(], "lights": [)" + extraLights +
+         R"(], "views": [{"eye": {"z": 3}, "target": {}}]})";
+}
+
+#define EXPECT_MENTIONS(err, part) EXPECT_NE((err).find(part), std::string::npos) << "error was: " << (err)
+
+TEST(SceneBuilder, EveryZooSceneBuilds) {
+  for (const auto& e : zooEntries()) {
+    auto scene = buildScene(zooScene(e.name));
+    EXPECT_FALSE(scene->meshes.empty()) << e.name;
+    EXPECT_FALSE(scene->lights.empty()) << e.name;
+    EXPECT_FALSE(scene->cameras.empty()) << e.name;
+  }
+  EXPECT_EQ(buildScene(zooScene("backlit"))->cameras.size(), 16u);
+}
+
+TEST(SceneBuilder, UnknownZooNameListsKnownNames) {
+  try {
+    zooScene("cornel");
+    FAIL();
+  } catch (const InputError& e) {
+    std::string m = e.what();
+    EXPECT_MENTIONS(m, "cornel'");
+    EXPECT_MENTIONS(m, "cornell, oxalis");
+  }
+}
+
+TEST(SceneBuilder, MissingMeshFile) {
+  std::string e = errorOf(withShape(R"({"name": "s", "material": "m", "mesh": {"path": "nope.obj"}})"));
+  EXPECT_MENTIONS(e, "scene.shapes[0] (s)");
+  EXPECT_MENTIONS(e, "nope.obj");
+  EXPECT_MENTIONS(e, "not found");
+}
+
+TEST(SceneBuilder, EmptyAndNonManifoldMeshes) {
+  auto dir = tmpDir();
+  std::ofstream(dir / "empty.obj") << "# nothing\n";
+  // Three triangles sharing the edge (1,2): non-manifold.
+  std::ofstream(dir / "fan.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nf 1 2 3\nf 2 3 4\nf 2 3 5\n";
+  AssetResolver assets;
+  assets.baseDir = dir;
+  std::string e = errorOf(withShape(R"({"name": "e", "material": "m", "mesh": {"path": "empty.obj"}})"), assets);
+  EXPECT_MENTIONS(e, "scene.shapes[0] (e)");
+  EXPECT_MENTIONS(e, "empty");
+  e = errorOf(withShape(R"({"name": "f", "material": "m", "mesh": {"path": "fan.obj"}})"), assets);
+  EXPECT_MENTIONS(e, "scene.shapes[0] (f)");
+  EXPECT_MENTIONS(e, "non-manifold");
+}
+
+TEST(SceneBuilder, NanInTransform) {
+  std::string e = errorOf(withShape(R"({"name": "q", "material": "m", "quad": {}, "transform": {"translate": {"x": "NaN"}}})"));
+  EXPECT_MENTIONS(e, "scene.shapes[0] (q).transform.translate");
+  EXPECT_MENTIONS(e, "finite");
+  e = errorOf(withShape(R"({"name": "q", "material": "m", "quad": {}, "transform": {"scale": {"x": 0, "y": 1, "z": 1}}})"));
+  EXPECT_MENTIONS(e, "transform.scale");
+}
+
+TEST(SceneBuilder, ZeroAreaLight) {
+  std::string e = errorOf(withShape(
+      R"({"name": "lamp", "material": "m", "quad": {}, "transform": {"scale": {"x": 1e-30, "y": 1e-30, "z": 1}}})",
+      R"({"name": "l", "area": {"shape": "lamp", "radiance": {"r": 1}}})"));
+  EXPECT_MENTIONS(e, "scene.shapes[0] (lamp)");
+  EXPECT_MENTIONS(e, "zero area");
+}
+
+TEST(SceneBuilder, TextureThatFailsToLoad) {
+  auto dir = tmpDir();
+  std::ofstream(dir / "broken.png") << "garbage";
+  AssetResolver assets;
+  assets.baseDir = dir;
+  for (const char* file : {"broken.png", "absent.png"}) {
+    std::string scene = std::string(R"({"materials": [{"name": "m", "diffuse": {"albedo": {"image": {"path": ")") + file +
+                        R"("}}}}], "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": [{"eye": {"z": 3}, "target": {}}]})";
+    std::string e = errorOf(scene, assets);
+    EXPECT_MENTIONS(e, "scene.materials[0] (m).diffuse.albedo.image");
+    EXPECT_MENTIONS(e, file);
+  }
+}
+
+TEST(SceneBuilder, ReferencesAndValuesAreChecked) {
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "q", "material": "wood", "quad": {}})")), "unknown material 'wood'");
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "q", "material": "m", "quad": {}})",
+                                    R"({"name": "l", "area": {"shape": "ghost"}})")), "scene.lights[0] (l).area.shape");
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "q", "material": "m"})")), "no geometry");
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "q", "material": "m", "quad": {}})",
+                                    R"({"name": "p", "point": {"intensity": {"r": -1}}})")), "negative");
+  EXPECT_MENTIONS(errorOf(R"({"materials": [{"name": "m", "rough_conductor": {"roughness": {"value": 0}}}],
+      "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": [{"eye": {"z": 3}, "target": {}}]})"), "roughness");
+  EXPECT_MENTIONS(errorOf(R"({"materials": [{"name": "m", "diffuse": {}}],
+      "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": []})"), "scene.views");
+  EXPECT_MENTIONS(errorOf(R"({"materials": [{"name": "m", "diffuse": {}}],
+      "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": [{"eye": {"z": 1}, "target": {"z": 1}}]})"), "scene.views[0].target");
+}
+
+TEST(SceneBuilder, RenderSettingsDefaultsAndErrors) {
+  invr::v1::RenderSettings r;
+  RenderOptions o = renderOptionsFrom(r);
+  EXPECT_EQ(o.spp, 16);
+  EXPECT_EQ(o.maxDepth, 1);
+  EXPECT_EQ(o.estimator, LightEstimator::NeeMis);
+  r.set_spp(-1);
+  EXPECT_THROW(renderOptionsFrom(r), InputError);
+}
+
+}  // namespace
+}  // namespace invr
