@@ -43,6 +43,17 @@ struct Bsdf {
       default: return Rgb(0.f);
     }
   }
+  // Adjoint of eval (delta lobes have no differentiable parameters here).
+  BsdfDerivatives evalDerivatives(Vec3 wo, Vec3 wi) const {
+    if (isDelta()) return {};
+    if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
+    switch (kind) {
+      case BsdfKind::Diffuse: return diffuse::evalDerivatives(wo, wi);
+      case BsdfKind::RoughConductor: return rough_conductor::evalDerivatives(alpha, eta, k, wo, wi);
+      case BsdfKind::RoughPlastic: return rough_plastic::evalDerivatives(alpha, ior, wo, wi);
+      default: return {};
+    }
+  }
   float pdf(Vec3 wo, Vec3 wi) const {
     if (isDelta()) return 0.f;
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
@@ -78,6 +89,9 @@ struct Material {
   Rgb eta{1.f}, k{0.f};
   float ior = 1.5f;
   Rgb reflectance{1.f};
+
+  bool hasAlbedo() const { return kind == BsdfKind::Diffuse || kind == BsdfKind::RoughPlastic; }
+  bool hasRoughness() const { return kind == BsdfKind::RoughConductor || kind == BsdfKind::RoughPlastic; }
 
   Bsdf at(Vec2 uv) const {
     Bsdf b;

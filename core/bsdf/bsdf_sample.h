@@ -15,4 +15,11 @@ struct BsdfSample {
   bool transmitted = false;
 };
 
+// Derivatives of a BSDF value (times |cos|) with respect to its parameters: per channel c,
+// d eval_c / d albedo_c (the albedo enters each channel alone) and d eval_c / d alpha.
+struct BsdfDerivatives {
+  Rgb dAlbedo{0.f};
+  Rgb dAlpha{0.f};
+};
+
 }  // namespace invr

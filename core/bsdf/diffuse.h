@@ -12,6 +12,12 @@ inline Rgb eval(Rgb albedo, Vec3 wo, Vec3 wi) {
   if (wo.z <= 0.f || wi.z <= 0.f) return Rgb(0.f);
   return albedo * (kInvPi * wi.z);
 }
+// Adjoint of eval: d eval_c / d albedo_c.
+inline BsdfDerivatives evalDerivatives(Vec3 wo, Vec3 wi) {
+  BsdfDerivatives d;
+  if (wo.z > 0.f && wi.z > 0.f) d.dAlbedo = Rgb(kInvPi * wi.z);
+  return d;
+}
 inline float pdf(Vec3 wo, Vec3 wi) { return wo.z > 0.f ? cosineHemispherePdf(wi.z) : 0.f; }
 inline std::optional<BsdfSample> sample(Rgb albedo, Vec3 wo, Vec2 u) {
   if (wo.z <= 0.f) return std::nullopt;

@@ -20,8 +20,32 @@ inline float lambda(Vec3 w, float alpha) {
   return 0.5f * (-1.f + std::sqrt(1.f + alpha * alpha * tan2));
 }
 
+// Adjoint of D with respect to alpha.
+inline float dD_dAlpha(Vec3 m, float alpha) {
+  if (m.z <= 0.f) return 0.f;
+  float a2 = alpha * alpha, c2 = m.z * m.z;
+  float t = c2 * (a2 - 1.f) + 1.f;
+  return 2.f * alpha / (kPi * t * t) * (1.f - 2.f * a2 * c2 / t);
+}
+
+// Adjoint of lambda with respect to alpha.
+inline float dLambda_dAlpha(Vec3 w, float alpha) {
+  float cos2 = w.z * w.z;
+  if (cos2 <= 0.f) return 0.f;
+  float tan2 = std::max(0.f, 1.f - cos2) / cos2;
+  return 0.5f * alpha * tan2 / std::sqrt(1.f + alpha * alpha * tan2);
+}
+
 inline float G1(Vec3 w, float alpha) { return 1.f / (1.f + lambda(w, alpha)); }
 inline float G2(Vec3 wo, Vec3 wi, float alpha) { return 1.f / (1.f + lambda(wo, alpha) + lambda(wi, alpha)); }
+inline float dG2_dAlpha(Vec3 wo, Vec3 wi, float alpha) {
+  float g = G2(wo, wi, alpha);
+  return -g * g * (dLambda_dAlpha(wo, alpha) + dLambda_dAlpha(wi, alpha));
+}
+// d/dalpha of D(m) G2(wo, wi): the roughness dependence shared by every GGX lobe.
+inline float dDG2_dAlpha(Vec3 m, Vec3 wo, Vec3 wi, float alpha) {
+  return dD_dAlpha(m, alpha) * G2(wo, wi, alpha) + D(m, alpha) * dG2_dAlpha(wo, wi, alpha);
+}
 
 // Density of visible normals seen from wo (wo.z > 0), with respect to solid angle of m.
 inline float pdfVisible(Vec3 wo, Vec3 m, float alpha) {

@@ -14,6 +14,14 @@ inline Rgb eval(float alpha, Rgb eta, Rgb k, Vec3 wo, Vec3 wi) {
   Vec3 m = normalize(wo + wi);
   return fresnelConductor(dot(wo, m), eta, k) * (ggx::D(m, alpha) * ggx::G2(wo, wi, alpha) / (4.f * wo.z));
 }
+// Adjoint of eval with respect to alpha (Fresnel does not depend on it).
+inline BsdfDerivatives evalDerivatives(float alpha, Rgb eta, Rgb k, Vec3 wo, Vec3 wi) {
+  BsdfDerivatives d;
+  if (wo.z <= 0.f || wi.z <= 0.f) return d;
+  Vec3 m = normalize(wo + wi);
+  d.dAlpha = fresnelConductor(dot(wo, m), eta, k) * (ggx::dDG2_dAlpha(m, wo, wi, alpha) / (4.f * wo.z));
+  return d;
+}
 inline float pdf(float alpha, Vec3 wo, Vec3 wi) {
   if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
   return ggx::pdfReflect(wo, wi, alpha);

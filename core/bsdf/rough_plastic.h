@@ -26,6 +26,17 @@ inline Rgb eval(Rgb albedo, float alpha, float ior, Vec3 wo, Vec3 wi) {
   return albedo * (trans * kInvPi * wi.z) + Rgb(spec);
 }
 
+// Adjoint of eval: the diffuse base is linear in albedo, the coating depends on alpha.
+inline BsdfDerivatives evalDerivatives(float alpha, float ior, Vec3 wo, Vec3 wi) {
+  BsdfDerivatives d;
+  if (wo.z <= 0.f || wi.z <= 0.f) return d;
+  Vec3 m = normalize(wo + wi);
+  float trans = (1.f - fresnelDielectric(wo.z, ior)) * (1.f - fresnelDielectric(wi.z, ior));
+  d.dAlbedo = Rgb(trans * kInvPi * wi.z);
+  d.dAlpha = Rgb(fresnelDielectric(dot(wo, m), ior) * ggx::dDG2_dAlpha(m, wo, wi, alpha) / (4.f * wo.z));
+  return d;
+}
+
 inline float pdf(Rgb albedo, float alpha, float ior, Vec3 wo, Vec3 wi) {
   if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
   float ps = specularProbability(albedo, ior, wo);

@@ -44,22 +44,32 @@ void buildEnvironmentDistribution(Light& light) {
   light.envDistribution = Distribution2D(w, im.width(), im.height());
 }
 
-LightSample sampleEnvironment(const Light& light, Vec2 u2) {
+LightSample environmentSampleAt(const Light& light, Vec3 w) {
   LightSample s;
   s.dist = std::numeric_limits<float>::infinity();
-  if (light.kind == LightKind::ConstantEnvironment) {
-    s.wi = sampleUniformSphere(u2);
-    s.pdf = kUniformSpherePdf;
-    s.radiance = light.radiance * light.scale;
-    return s;
-  }
+  s.wi = w;
+  s.ref.direction = w;
+  s.pdf = environmentPdf(light, w);
+  s.pdfNative = s.pdf;
+  s.radiance = environmentRadiance(light, w);
+  // Only the constant environment's radiance is a parameter; image maps are not (yet).
+  s.emissionPerUnit = light.kind == LightKind::ConstantEnvironment ? light.scale : 0.f;
+  return s;
+}
+
+LightSample sampleEnvironment(const Light& light, Vec2 u2) {
+  if (light.kind == LightKind::ConstantEnvironment) return environmentSampleAt(light, sampleUniformSphere(u2));
   float pdfUv;
   Vec2 uv = light.envDistribution.sample(u2, &pdfUv);
   float sinTheta = std::sin(uv.y * kPi);
-  if (sinTheta <= 0.f || pdfUv <= 0.f) return s;
-  s.wi = latLongToDirection(uv);
-  s.pdf = pdfUv / (2.f * kPi * kPi * sinTheta);
-  s.radiance = environmentRadiance(light, s.wi);
+  if (sinTheta <= 0.f || pdfUv <= 0.f) {
+    LightSample s;
+    s.dist = std::numeric_limits<float>::infinity();
+    return s;
+  }
+  LightSample s = environmentSampleAt(light, latLongToDirection(uv));
+  s.pdf = pdfUv / (2.f * kPi * kPi * sinTheta);  // exact for this cell (pdf() recomputes the same)
+  s.pdfNative = s.pdf;
   return s;
 }
 

@@ -1,18 +1,37 @@
 #include "core/lights/light.h"
+#include "core/scene/scene.h"
 
 namespace invr {
 
 LightSample sampleAreaLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2);
+LightSample areaLightSampleAt(const Light& light, const Scene& scene, Vec3 p, uint32_t tri, float b1, float b2);
 LightSample samplePointOrSpot(const Light& light, Vec3 p);
 LightSample sampleEnvironment(const Light& light, Vec2 u2);
+LightSample environmentSampleAt(const Light& light, Vec3 w);
 
-LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2) {
+LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex) {
+  LightSample s;
   switch (light.kind) {
-    case LightKind::Area: return sampleAreaLight(light, scene, p, u2);
+    case LightKind::Area: s = sampleAreaLight(light, scene, p, u2); break;
     case LightKind::Point:
-    case LightKind::Spot: return samplePointOrSpot(light, p);
-    default: return sampleEnvironment(light, u2);
+    case LightKind::Spot: s = samplePointOrSpot(light, p); break;
+    default: s = sampleEnvironment(light, u2); break;
   }
+  s.ref.light = lightIndex;
+  return s;
+}
+
+LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p) {
+  const Light& light = scene.lights[ref.light];
+  LightSample s;
+  switch (light.kind) {
+    case LightKind::Area: s = areaLightSampleAt(light, scene, p, ref.tri, ref.b1, ref.b2); break;
+    case LightKind::Point:
+    case LightKind::Spot: s = samplePointOrSpot(light, p); break;
+    default: s = environmentSampleAt(light, ref.direction); break;
+  }
+  s.ref = ref;
+  return s;
 }
 
 float lightPower(const Light& light, float sceneRadius) {

@@ -15,8 +15,21 @@ class Scene;
 
 enum class LightKind { Area, Point, Spot, Environment, ConstantEnvironment };
 
+// Where a light sample lies, in a form that survives parameter changes: an area-light point is
+// (triangle, barycentrics), re-placed on the current mesh; an environment sample is a direction.
+struct LightSampleRef {
+  uint32_t light = 0;
+  uint32_t tri = 0;
+  float b1 = 0.f, b2 = 0.f;
+  Vec3 direction;  // environments
+};
+
 // A direction towards a light from a reference point. For delta lights `pdf` is 1 and `radiance`
 // already includes the 1/d^2 falloff; otherwise pdf is the solid-angle density of wi.
+//
+// ReSTIR reuses samples across shading points, so resampling works in each light's own measure
+// (area on emitters, counting for point lights, solid angle for environments): the integrand in
+// that measure is f |cos| Le * jacobian and its density is pdfNative (= pdf * jacobian).
 struct LightSample {
   Vec3 wi;
   float dist = 0.f;      // distance to the light point; infinity for environments
@@ -24,8 +37,11 @@ struct LightSample {
   float pdf = 0.f;
   bool delta = false;
   Vec3 lightPoint, lightNormal;  // for area lights (shadow rays, reservoir anchoring)
+  float jacobian = 1.f;          // solid angle -> native measure: |cos_l| / d^2 for area lights
+  float pdfNative = 0.f;         // density in the native measure (without light selection)
+  float emissionPerUnit = 0.f;   // d radiance / d (the light's radiance or intensity), per channel
+  LightSampleRef ref;
 };
-
 struct Light {
   std::string name;
   LightKind kind = LightKind::Point;
@@ -41,15 +57,17 @@ struct Light {
   Rgb intensity{0.f};
   float cosOuter = -1.f, cosInner = -1.f;
   // Environments (environment: lat-long image with +y up).
-  std::shared_ptr<const Image> envImage;
+  std::shared_ptr<Image> envImage;
   Distribution2D envDistribution;
 
   bool isDelta() const { return kind == LightKind::Point || kind == LightKind::Spot; }
   bool isInfinite() const { return kind == LightKind::Environment || kind == LightKind::ConstantEnvironment; }
 };
 
-// Samples a direction towards `light` from point `p` (u2: two uniforms).
-LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2);
+// Samples a direction towards `light` (index lightIndex) from point `p` (u2: two uniforms).
+LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex = 0);
+// Re-evaluates a stored light sample from point p in the current scene (pdf fields included).
+LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p);
 
 // Area lights: emitted radiance leaving point with geometric normal n towards direction w.
 inline Rgb areaEmission(const Light& l, Vec3 n, Vec3 w) {

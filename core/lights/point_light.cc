@@ -18,11 +18,13 @@ LightSample samplePointOrSpot(const Light& light, Vec3 p) {
   s.dist = std::sqrt(d2);
   s.wi = d / s.dist;
   s.pdf = 1.f;
+  s.pdfNative = 1.f;
   s.delta = true;
   s.lightPoint = light.position;
-  Rgb I = light.intensity * light.scale;
-  if (light.kind == LightKind::Spot) I *= spotFalloff(light, -s.wi);
-  s.radiance = I / d2;
+  float factor = light.scale / d2;
+  if (light.kind == LightKind::Spot) factor *= spotFalloff(light, -s.wi);
+  s.radiance = light.intensity * factor;
+  s.emissionPerUnit = factor;
   return s;
 }
 

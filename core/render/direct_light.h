@@ -1,10 +1,13 @@
-// Direct-illumination estimators at one surface vertex. Each returns an estimate of
-//   sum over lights of  integral f(wo, wi) |cos| Le(wi) V(wi) dwi
-// (without the path throughput). One estimator per file.
+// Direct illumination at one surface vertex, as sampled paths (x0 on a light, x1 here, x2 the
+// previous vertex). A path contributes weight * bsdfValue * emission, where `weight` collects every
+// factor that the estimator treats as detached (pdfs, geometry, visibility, RIS weights, MIS) and
+// the other two factors are the only ones that depend on material and light parameters. The
+// forward renderer sums contributions; the gradient engine differentiates bsdfValue and emission.
 #pragma once
 
 #include "core/math/rng.h"
 #include "core/render/render_options.h"
+#include "core/restir/reservoir.h"
 #include "core/scene/scene.h"
 
 namespace invr {
@@ -17,18 +20,37 @@ struct ShadingPoint {
   Vec3 woWorld;
 };
 
+struct DirectPath {
+  Rgb weight{0.f};
+  Rgb bsdfValue{0.f};  // f |cos| at x1
+  Rgb emission{0.f};   // Le arriving at x1 (point lights: includes falloff / d^2)
+  Vec3 wiLocal;
+  bool throughBsdf = true;  // false for emission seen directly or through a delta lobe
+  LightSampleRef light;
+  float emissionPerUnit = 0.f;  // d emission / d (light radiance or intensity)
+  Rgb contribution() const { return weight * bsdfValue * emission; }
+};
+
 inline float powerHeuristic(float a, float b) {
   if (std::isinf(a)) return 1.f;
   float a2 = a * a, b2 = b * b;
   return a2 + b2 > 0.f ? a2 / (a2 + b2) : 0.f;
 }
 
-// Unshadowed contribution f |cos| Le of a light sample, zero across the geometric surface.
-inline Rgb unshadowedContribution(const ShadingPoint& sp, const LightSample& ls) {
-  if (!(ls.pdf > 0.f) || isBlack(ls.radiance)) return Rgb(0.f);
+// f |cos| of a light sample at the shading point; zero across the geometric surface
+// (all non-delta lobes here are reflective).
+inline Rgb bsdfTowards(const ShadingPoint& sp, Vec3 wi) {
   const Vec3 ng = sp.hit->ng;
-  if (dot(ls.wi, ng) * dot(sp.woWorld, ng) <= 0.f) return Rgb(0.f);  // reflection only
-  return sp.bsdf->eval(sp.wo, sp.frame.toLocal(ls.wi)) * ls.radiance;
+  if (dot(wi, ng) * dot(sp.woWorld, ng) <= 0.f) return Rgb(0.f);
+  return sp.bsdf->eval(sp.wo, sp.frame.toLocal(wi));
+}
+
+// The resampling target in the light's native measure: luminance(f |cos| Le) * jacobian.
+inline float risTarget(const ShadingPoint& sp, const LightSample& ls, Rgb* fOut = nullptr) {
+  if (!(ls.pdfNative > 0.f) || isBlack(ls.radiance)) return 0.f;
+  Rgb f = bsdfTowards(sp, ls.wi);
+  if (fOut) *fOut = f;
+  return luminance(f * ls.radiance) * ls.jacobian;
 }
 
 inline bool traceShadow(const Scene& scene, const ShadingPoint& sp, const LightSample& ls, PathContext* ctx) {
@@ -47,13 +69,41 @@ inline bool traceShadow(const Scene& scene, const ShadingPoint& sp, const LightS
   return blocked;
 }
 
-// Baseline: one light chosen by power, MIS-weighted against BSDF sampling (the BSDF-sampled half
-// is added by the path tracer when its ray hits an emitter).
-Rgb estimateDirectNeeMis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx);
+// A path to a light sample whose unbiased contribution weight (in the native measure) is W.
+inline DirectPath pathToLight(const ShadingPoint& sp, const LightSample& ls, Rgb f, float W) {
+  DirectPath p;
+  p.weight = Rgb(W * ls.jacobian);
+  p.bsdfValue = f;
+  p.emission = ls.radiance;
+  p.wiLocal = sp.frame.toLocal(ls.wi);
+  p.light = ls.ref;
+  p.emissionPerUnit = ls.emissionPerUnit;
+  return p;
+}
 
-// Streaming RIS with M candidates drawn by the NEE strategy, target luminance(f |cos| Le)
-// (times visibility when visibilityInTarget), Alg. 1 of Wang et al. 2023.
-Rgb estimateDirectRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates,
-                      bool visibilityInTarget, PathContext* ctx);
+// Baseline B.1: one light chosen by power, MIS-weighted against BSDF sampling (the BSDF-sampled
+// half is added by whoever traces the BSDF ray). False if the sample contributes nothing.
+bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out);
+
+// Streaming RIS core (Alg. 1): the reservoir after M candidates, and the chosen sample's data.
+Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF);
+
+// Baseline B.2: streaming RIS over M candidates drawn by the NEE strategy (Alg. 1). The target
+// includes visibility when visibilityInTarget (Eq. 14), else not (Eq. 17). `reservoir` receives
+// the resampled state (for ReSTIR); returns false if the chosen sample contributes nothing.
+bool sampleDirectRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
+                     PathContext* ctx, DirectPath& out, Reservoir* reservoir = nullptr);
+
+// Forward-rendering wrappers: the estimate of direct light (without path throughput).
+inline Rgb estimateDirectNeeMis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx) {
+  DirectPath p;
+  return sampleDirectNee(scene, sp, sampler, ctx, p) ? p.contribution() : Rgb(0.f);
+}
+inline Rgb estimateDirectRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates,
+                             bool visibilityInTarget, PathContext* ctx) {
+  DirectPath p;
+  return sampleDirectRis(scene, sp, sampler, candidates, visibilityInTarget, ctx, p) ? p.contribution() : Rgb(0.f);
+}
 
 }  // namespace invr

@@ -2,20 +2,23 @@
 
 namespace invr {
 
-Rgb estimateDirectNeeMis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx) {
-  if (scene.lights.empty()) return Rgb(0.f);
+bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out) {
+  if (scene.lights.empty()) return false;
   float uSel = sampler.next1D();
   Vec2 u2(sampler.next1D(), sampler.next1D());
   size_t li = scene.lightSelection().sample(uSel);
   float pmf = scene.lightSelection().pmf(li);
-  if (!(pmf > 0.f)) return Rgb(0.f);
-  LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2);
-  Rgb c = unshadowedContribution(sp, ls);
-  if (isBlack(c)) return Rgb(0.f);
-  if (traceShadow(scene, sp, ls, ctx)) return Rgb(0.f);
+  if (!(pmf > 0.f)) return false;
+  LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2, uint32_t(li));
+  if (!(ls.pdf > 0.f) || isBlack(ls.radiance)) return false;
+  Rgb f = bsdfTowards(sp, ls.wi);
+  if (isBlack(f)) return false;
+  if (traceShadow(scene, sp, ls, ctx)) return false;
   float lightPdf = pmf * ls.pdf;
   float w = ls.delta ? 1.f : powerHeuristic(lightPdf, sp.bsdf->pdf(sp.wo, sp.frame.toLocal(ls.wi)));
-  return c * (w / lightPdf);
+  // In solid angle: weight = w / lightPdf; pathToLight multiplies by the jacobian, so divide here.
+  out = pathToLight(sp, ls, f, w / (pmf * ls.pdfNative));
+  return true;
 }
 
 }  // namespace invr

@@ -2,41 +2,44 @@
 
 namespace invr {
 
-// Candidates live in the union of the lights' domains (light index x point or direction); the
-// source density is pmf(light) * pdf(sample) in that light's own measure and the target uses
-// the same measure, so w = p_hat / p_c is well defined for delta and area lights alike.
-Rgb estimateDirectRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates,
-                      bool visibilityInTarget, PathContext* ctx) {
-  if (scene.lights.empty() || candidates <= 0) return Rgb(0.f);
-  double wSum = 0.0;
-  LightSample chosen;
-  Rgb chosenF(0.f);
-  float chosenTarget = 0.f;
+// Candidates live in the union of the lights' native domains (light index x point, direction or
+// nothing); the source density is pmf(light) * pdfNative and the target uses the same measure,
+// so w = p_hat / p_c is well defined for delta, area and environment lights alike.
+Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF) {
+  Reservoir r;
+  if (scene.lights.empty()) return r;
   for (int m = 0; m < candidates; ++m) {
     float uSel = sampler.next1D();
     Vec2 u2(sampler.next1D(), sampler.next1D());
     float uPick = sampler.next1D();
     size_t li = scene.lightSelection().sample(uSel);
     float pmf = scene.lightSelection().pmf(li);
-    if (!(pmf > 0.f)) continue;
-    LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2);
-    Rgb f = unshadowedContribution(sp, ls);
-    float target = luminance(f);
+    if (!(pmf > 0.f)) { r.M += 1.f; continue; }
+    LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2, uint32_t(li));
+    Rgb f(0.f);
+    float target = risTarget(sp, ls, &f);
     if (target > 0.f && visibilityInTarget && traceShadow(scene, sp, ls, ctx)) target = 0.f;
-    if (!(target > 0.f)) continue;
-    double w = double(target) / (double(pmf) * double(ls.pdf));
-    wSum += w;
-    if (double(uPick) * wSum < w) {  // replace with probability w / wSum
+    double w = target > 0.f ? double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
+    if (r.update(ls.ref, w, target, uPick)) {
       chosen = ls;
       chosenF = f;
-      chosenTarget = target;
     }
   }
-  // W = 0 whenever no candidate had a positive target.
-  if (!(wSum > 0.0) || !(chosenTarget > 0.f)) return Rgb(0.f);
-  float W = float(wSum / (double(candidates) * double(chosenTarget)));
-  if (!visibilityInTarget && traceShadow(scene, sp, chosen, ctx)) return Rgb(0.f);
-  return chosenF * W;
+  r.finalize(r.M);  // W = wSum / (M p_hat(y)); zero when no candidate had a positive target
+  return r;
+}
+
+bool sampleDirectRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
+                     PathContext* ctx, DirectPath& out, Reservoir* reservoirOut) {
+  LightSample chosen;
+  Rgb chosenF(0.f);
+  Reservoir r = streamRis(scene, sp, sampler, candidates, visibilityInTarget, ctx, chosen, chosenF);
+  if (reservoirOut) *reservoirOut = r;
+  if (!(r.W > 0.f)) return false;
+  if (!visibilityInTarget && traceShadow(scene, sp, chosen, ctx)) return false;
+  out = pathToLight(sp, chosen, chosenF, r.W);
+  return true;
 }
 
 }  // namespace invr

@@ -16,24 +16,28 @@ void Scene::finalize() {
   for (uint32_t m = 0; m < meshes.size(); ++m) computeFaceNormals(m);
   radius = std::max(0.5f * length(boundsMax - boundsMin), 1e-3f);
 
+  for (Light& l : lights) {
+    if (l.kind != LightKind::Area) continue;
+    const TriangleMesh& m = meshes[l.mesh];
+    std::vector<float> areas(m.triangleCount());
+    double total = 0;
+    for (size_t t = 0; t < areas.size(); ++t) total += (areas[t] = m.triangleArea(t));
+    l.area = float(total);
+    if (!(l.area > 0.f)) throw InputError("light '" + l.name + "': emitting shape has zero area");
+    l.triangles = Distribution1D(areas);
+  }
+  updateLightSelection();
+  accel.build(meshes);
+}
+
+void Scene::updateLightSelection() {
   infiniteLights_.clear();
   std::vector<float> power(lights.size());
   for (size_t i = 0; i < lights.size(); ++i) {
-    Light& l = lights[i];
-    if (l.kind == LightKind::Area) {
-      const TriangleMesh& m = meshes[l.mesh];
-      std::vector<float> areas(m.triangleCount());
-      double total = 0;
-      for (size_t t = 0; t < areas.size(); ++t) total += (areas[t] = m.triangleArea(t));
-      l.area = float(total);
-      if (!(l.area > 0.f)) throw InputError("light '" + l.name + "': emitting shape has zero area");
-      l.triangles = Distribution1D(areas);
-    }
-    if (l.isInfinite()) infiniteLights_.push_back(uint32_t(i));
-    power[i] = std::max(lightPower(l, radius), 0.f);
+    if (lights[i].isInfinite()) infiniteLights_.push_back(uint32_t(i));
+    power[i] = std::max(lightPower(lights[i], radius), 0.f);
   }
   lightSelect_ = Distribution1D(power);
-  accel.build(meshes);
 }
 
 void Scene::computeFaceNormals(uint32_t mesh) {
@@ -59,14 +63,20 @@ void Scene::updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions) {
 bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   RayHit rh;
   if (!accel.intersect(o, d, 0.f, tmax, rh)) return false;
-  const TriangleMesh& m = meshes[rh.mesh];
-  uint32_t i0 = m.indices[3 * rh.tri], i1 = m.indices[3 * rh.tri + 1], i2 = m.indices[3 * rh.tri + 2];
-  float b0 = 1.f - rh.b1 - rh.b2;
-  Vec3 p0 = m.positions[i0], p1 = m.positions[i1], p2 = m.positions[i2];
-  hit.p = p0 * b0 + p1 * rh.b1 + p2 * rh.b2;
-  hit.ng = faceNormals_[rh.mesh][rh.tri];
+  hit = surfaceAt(rh.mesh, rh.tri, rh.b1, rh.b2);
+  hit.t = rh.t;
+  return true;
+}
+
+SurfaceHit Scene::surfaceAt(uint32_t mesh, uint32_t tri, float b1, float b2) const {
+  SurfaceHit hit;
+  const TriangleMesh& m = meshes[mesh];
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  float b0 = 1.f - b1 - b2;
+  hit.p = m.positions[i0] * b0 + m.positions[i1] * b1 + m.positions[i2] * b2;
+  hit.ng = faceNormals_[mesh][tri];
   if (!m.normals.empty()) {
-    Vec3 n = m.normals[i0] * b0 + m.normals[i1] * rh.b1 + m.normals[i2] * rh.b2;
+    Vec3 n = m.normals[i0] * b0 + m.normals[i1] * b1 + m.normals[i2] * b2;
     float len = length(n);
     hit.ns = len > 0.f ? n / len : hit.ng;
     // Keep the shading normal on the geometric normal's side so the local frame is consistent.
@@ -74,13 +84,12 @@ bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   } else {
     hit.ns = hit.ng;
   }
-  hit.uv = m.uvs.empty() ? Vec2(rh.b1, rh.b2) : m.uvs[i0] * b0 + m.uvs[i1] * rh.b1 + m.uvs[i2] * rh.b2;
-  hit.mesh = rh.mesh;
-  hit.tri = rh.tri;
-  hit.b1 = rh.b1;
-  hit.b2 = rh.b2;
-  hit.t = rh.t;
-  return true;
+  hit.uv = m.uvs.empty() ? Vec2(b1, b2) : m.uvs[i0] * b0 + m.uvs[i1] * b1 + m.uvs[i2] * b2;
+  hit.mesh = mesh;
+  hit.tri = tri;
+  hit.b1 = b1;
+  hit.b2 = b2;
+  return hit;
 }
 
 }  // namespace invr

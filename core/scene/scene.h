@@ -49,6 +49,8 @@ class Scene {
   // Computes bounds, face normals, light areas and the light-selection distribution, and builds
   // the BVH.
   void finalize();
+  // Recomputes light power and the light-selection distribution (after emission changed).
+  void updateLightSelection();
   // Moves a mesh's vertices (shape optimisation): refits the BVH and updates face normals.
   // Light areas are recomputed by calling finalize() when an emitter moves.
   void updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions);
@@ -58,6 +60,9 @@ class Scene {
   Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return faceNormals_[mesh][tri]; }
 
   bool intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax = std::numeric_limits<float>::infinity()) const;
+  // The surface point with barycentrics (b1, b2) on a triangle, in the current geometry: how
+  // reservoirs anchored to surfaces follow them when vertices move.
+  SurfaceHit surfaceAt(uint32_t mesh, uint32_t tri, float b1, float b2) const;
   // Shadow rays. Both ends are pushed off their surfaces (the light point along its own normal)
   // so neither the receiver nor the emitter can occlude the segment between them.
   static Vec3 shadowOrigin(Vec3 p, Vec3 ng, Vec3 towards) { return offsetOrigin(p, ng, towards); }

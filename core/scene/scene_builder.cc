@@ -56,7 +56,7 @@ Affine transformOf(const v1::Transform& t, const std::string& field) {
   return Affine::translate(tr) * Affine::rotate(2, r.z) * Affine::rotate(1, r.y) * Affine::rotate(0, r.x) * Affine::scale(s);
 }
 
-std::shared_ptr<const Image> loadTextureImage(const v1::Texture& t, const AssetResolver& assets, const std::string& field,
+std::shared_ptr<Image> loadTextureImage(const v1::Texture& t, const AssetResolver& assets, const std::string& field,
                                               bool colour) {
   if (t.has_procedural()) {
     const auto& p = t.procedural();

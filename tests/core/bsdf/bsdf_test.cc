@@ -146,6 +146,35 @@ TEST(Bsdf, AlbedoAtMostOne) {
     }
 }
 
+// Adjoints next to their primals: d eval / d albedo and d eval / d alpha against central
+// differences of eval (deterministic; the tolerance covers float rounding in eval).
+TEST(Bsdf, DerivativesMatchFiniteDifferences) {
+  for (const auto& c : cases())
+    for (float theta : {15.f, 50.f, 75.f}) {
+      Vec3 wo = dirFromAngle(theta);
+      Sampler s(RngKey{14, 0, 0, uint64_t(theta)});
+      for (int i = 0; i < 200; ++i) {
+        Vec3 wi = sampleCosineHemisphere({s.next1D(), s.next1D()});
+        if (wi.z < 0.05f) continue;
+        BsdfDerivatives d = c.bsdf.evalDerivatives(wo, wi);
+        const float h = 1e-3f;
+        Bsdf plus = c.bsdf, minus = c.bsdf;
+        plus.alpha += h;
+        minus.alpha -= h;
+        Rgb fdAlpha = (plus.eval(wo, wi) - minus.eval(wo, wi)) / (2 * h);
+        for (int k = 0; k < 3; ++k) {
+          float tol = 5e-3f * std::abs(fdAlpha[k]) + 1e-4f;
+          ASSERT_NEAR(d.dAlpha[k], c.bsdf.kind == BsdfKind::Diffuse ? 0.f : fdAlpha[k], tol) << c.name;
+          Bsdf pa = c.bsdf, ma = c.bsdf;
+          pa.albedo[k] += h;
+          ma.albedo[k] -= h;
+          float fdAlbedo = (pa.eval(wo, wi)[k] - ma.eval(wo, wi)[k]) / (2 * h);
+          ASSERT_NEAR(d.dAlbedo[k], fdAlbedo, 2e-3f * std::abs(fdAlbedo) + 1e-5f) << c.name;
+        }
+      }
+    }
+}
+
 TEST(Bsdf, DeltaLobes) {
   Bsdf m;
   m.kind = BsdfKind::Mirror;

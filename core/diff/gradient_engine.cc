@@ -1,0 +1,406 @@
+#include "core/diff/gradient_engine.h"
+
+#include <tbb/blocked_range2d.h>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <mutex>
+
+#include "core/diff/gradient_sink.h"
+#include "core/error.h"
+
+namespace invr {
+
+GradientMethod gradientMethodFromName(const std::string& name) {
+  if (name == "pt") return GradientMethod::Pt;
+  if (name == "ris") return GradientMethod::Ris;
+  if (name == "restir") return GradientMethod::Restir;
+  throw InputError("unknown method '" + name + "' (use pt, ris or restir)");
+}
+
+const char* gradientMethodName(GradientMethod m) {
+  return m == GradientMethod::Pt ? "pt" : m == GradientMethod::Ris ? "ris" : "restir";
+}
+
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+enum Pass { kPrimal = 0, kDerivative = 1 };
+
+// Everything one camera sample produces.
+struct CameraSample {
+  bool hit = false;
+  SurfaceHit surface;
+  Bsdf bsdf;
+  int material = -1;
+  int count = 0;
+  DirectPath paths[4];
+  bool hasReservoir = false;
+  StoredReservoir reservoir;
+
+  void add(const DirectPath& p) {
+    if (count < 4) paths[count++] = p;
+  }
+  Rgb value() const {
+    Rgb v(0.f);
+    for (int i = 0; i < count; ++i) v += paths[i].contribution();
+    return v;
+  }
+};
+
+DirectPath emissionPath(Rgb weight, Rgb emission, const LightSampleRef& ref, float perUnit) {
+  DirectPath p;
+  p.weight = weight;
+  p.bsdfValue = Rgb(1.f);
+  p.emission = emission;
+  p.throughBsdf = false;
+  p.light = ref;
+  p.emissionPerUnit = perUnit;
+  return p;
+}
+
+// Emission reached by ray (o, d): an environment on a miss, a front-facing area light on a hit.
+// Returns false if nothing emits there. hitOut receives the surface hit (if any).
+bool emissionAlong(const Scene& scene, Vec3 o, Vec3 d, Rgb weight, CameraSample& cs, SurfaceHit* hitOut, bool* hitAny,
+                   float misPdfBsdf, bool useMis) {
+  SurfaceHit h;
+  bool any = scene.intersect(o, d, h);
+  if (hitAny) *hitAny = any;
+  if (hitOut) *hitOut = h;
+  const auto& sel = scene.lightSelection();
+  if (!any) {
+    bool added = false;
+    for (uint32_t li : scene.infiniteLights()) {
+      const Light& l = scene.lights[li];
+      Rgb Le = environmentRadiance(l, d);
+      if (isBlack(Le)) continue;
+      float w = useMis ? powerHeuristic(misPdfBsdf, sel.pmf(li) * environmentPdf(l, d)) : 1.f;
+      LightSampleRef ref;
+      ref.light = li;
+      ref.direction = d;
+      cs.add(emissionPath(weight * w, Le, ref, l.kind == LightKind::ConstantEnvironment ? l.scale : 0.f));
+      added = true;
+    }
+    return added;
+  }
+  int li = scene.meshLight[h.mesh];
+  if (li < 0) return false;
+  const Light& l = scene.lights[size_t(li)];
+  Rgb Le = areaEmission(l, h.ng, -d);
+  if (isBlack(Le)) return false;
+  float w = useMis ? powerHeuristic(misPdfBsdf, sel.pmf(size_t(li)) * areaLightPdf(l, o, h.p, h.ng)) : 1.f;
+  LightSampleRef ref;
+  ref.light = uint32_t(li);
+  ref.tri = h.tri;
+  ref.b1 = h.b1;
+  ref.b2 = h.b2;
+  cs.add(emissionPath(weight * w, Le, ref, l.scale));
+  return true;
+}
+
+}  // namespace
+
+bool visibleFromCamera(const Scene& scene, const Camera& cam, Vec3 p, Vec3 n) {
+  Vec3 d = p - cam.eye;
+  float z = dot(d, cam.forward);
+  if (!(z > 0.f)) return false;
+  float aspect = float(scene.width) / float(scene.height);
+  float sx = dot(d, cam.right) / z, sy = dot(d, cam.up) / z;
+  if (std::abs(sx) > cam.tanHalfFovY * aspect || std::abs(sy) > cam.tanHalfFovY) return false;
+  Vec3 o = offsetOrigin(p, n, -d);
+  Vec3 dir;
+  float tmax;
+  return !scene.occludedSegment(o, cam.eye, dir, tmax);
+}
+
+GradientEngine::GradientEngine(Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options)
+    : scene_(scene), params_(params), targets_(std::move(targets)), opt_(options) {
+  if (opt_.sppPrimal <= 0 || opt_.sppGradient <= 0) throw InputError("spp_primal and spp_gradient must be positive");
+  if (opt_.restir.candidates <= 0) throw InputError("ris_candidates must be positive");
+  if (!(opt_.radiusFraction > 0.f)) throw InputError("restir radius_fraction must be positive");
+  opt_.restir.radius = opt_.radiusFraction * scene_.radius;
+}
+
+struct GradientEngine::PassResult {
+  Image image;
+  uint64_t nonFinite = 0;
+  RayStats rays;
+  RestirCounters restir;
+};
+
+// One pass over all pixels of one view. pass = kPrimal renders; kDerivative backpropagates
+// `adjoint` (dL/dI) into `gradient`. `store` (if set) receives one reservoir per pixel sample.
+GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
+                                                   std::vector<StoredReservoir>* store, const Image* adjoint,
+                                                   std::vector<double>* gradient) {
+  const int W = scene_.width, H = scene_.height;
+  const int spp = pass == kPrimal ? opt_.sppPrimal : opt_.sppGradient;
+  const Camera& cam = scene_.cameras[size_t(view)];
+  const bool useRestir = opt_.method == GradientMethod::Restir && !(pass == kDerivative && opt_.forwardOnly);
+  // Independent random streams per pass: the same step never reuses primal numbers for derivatives.
+  const uint64_t passSeed = mix64(req.seed * 2 + uint64_t(pass) + 0x51ed27u);
+  constexpr int kTile = 16;
+  const int tilesX = (W + kTile - 1) / kTile, tilesY = (H + kTile - 1) / kTile;
+  std::vector<TileGradient> tiles(gradient ? size_t(tilesX) * size_t(tilesY) : 0);
+  PassResult res;
+  res.image = Image(W, H, 3);
+  std::mutex mergeMutex;
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, tilesX * tilesY), [&](const tbb::blocked_range<int>& range) {
+    RayStats rays;
+    RestirCounters counters;
+    uint64_t nonFinite = 0;
+    PathContext ctx{&rays, nullptr};
+    PathGradient pathGrad;
+    for (int tile = range.begin(); tile < range.end(); ++tile) {
+      int tx = tile % tilesX, ty = tile / tilesX;
+      for (int y = ty * kTile; y < std::min(H, (ty + 1) * kTile); ++y)
+        for (int x = tx * kTile; x < std::min(W, (tx + 1) * kTile); ++x) {
+          const uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
+          const uint64_t pixelHash = RngKey{passSeed, req.step, uint64_t(view), pixel, 0}.pixelHash();
+          double acc[3] = {0, 0, 0};
+          Rgb pixelAdjoint = adjoint ? adjoint->rgb(x, y) / float(spp) : Rgb(0.f);
+          for (int s = 0; s < spp; ++s) {
+            Sampler sampler(RngKey::withSample(pixelHash, uint64_t(s)));
+            CameraSample cs;
+            Vec3 d = cam.direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
+            ++rays.camera;
+            SurfaceHit& hit = cs.surface;
+            if (!scene_.intersect(cam.eye, d, hit)) {
+              emissionAlong(scene_, cam.eye, d, Rgb(1.f), cs, nullptr, nullptr, 0.f, false);
+            } else {
+              cs.hit = true;
+              if (int li = scene_.meshLight[hit.mesh]; li >= 0) {
+                const Light& l = scene_.lights[size_t(li)];
+                Rgb Le = areaEmission(l, hit.ng, -d);
+                if (!isBlack(Le)) {
+                  LightSampleRef ref;
+                  ref.light = uint32_t(li);
+                  ref.tri = hit.tri;
+                  ref.b1 = hit.b1;
+                  ref.b2 = hit.b2;
+                  cs.add(emissionPath(Rgb(1.f), Le, ref, l.scale));
+                }
+              }
+              cs.material = scene_.meshMaterial[hit.mesh];
+              cs.bsdf = scene_.materials[size_t(cs.material)].at(hit.uv);
+              ShadingPoint sp{&hit, &cs.bsdf, Frame(hit.ns), Vec3(), -d};
+              sp.wo = sp.frame.toLocal(-d);
+              if (cs.bsdf.isDelta()) {
+                // Direct illumination through a delta lobe: only the emission it reaches.
+                auto bs = cs.bsdf.sample(sp.wo, sampler.next1D(), {sampler.next1D(), sampler.next1D()});
+                if (bs) {
+                  Vec3 wi = sp.frame.toWorld(bs->wi);
+                  ++rays.bounce;
+                  emissionAlong(scene_, offsetOrigin(hit.p, hit.ng, wi), wi, bs->weight, cs, nullptr, nullptr, 0.f, false);
+                }
+              } else if (opt_.method == GradientMethod::Pt) {
+                DirectPath p;
+                if (sampleDirectNee(scene_, sp, sampler, &ctx, p)) cs.add(p);
+                // The BSDF-sampled half of MIS.
+                auto bs = cs.bsdf.sample(sp.wo, sampler.next1D(), {sampler.next1D(), sampler.next1D()});
+                if (bs && !bs->delta) {
+                  Vec3 wi = sp.frame.toWorld(bs->wi);
+                  if (dot(wi, hit.ng) * dot(-d, hit.ng) > 0.f) {
+                    ++rays.bounce;
+                    int before = cs.count;
+                    Rgb f = cs.bsdf.eval(sp.wo, bs->wi);
+                    if (emissionAlong(scene_, offsetOrigin(hit.p, hit.ng, wi), wi, Rgb(1.f / bs->pdf), cs, nullptr, nullptr,
+                                      bs->pdf, true)) {
+                      for (int i = before; i < cs.count; ++i) {
+                        cs.paths[i].throughBsdf = true;
+                        cs.paths[i].bsdfValue = f;
+                        cs.paths[i].wiLocal = bs->wi;
+                      }
+                    }
+                  }
+                }
+              } else if (!useRestir) {
+                DirectPath p;
+                if (sampleDirectRis(scene_, sp, sampler, opt_.restir.candidates, opt_.restir.visibilityInTarget, &ctx, p)) cs.add(p);
+              } else {
+                DirectPath p;
+                Reservoir r;
+                if (sampleDirectRestir(scene_, sp, sampler, opt_.restir, prev, &ctx, p, r, &counters)) cs.add(p);
+                cs.hasReservoir = true;
+                cs.reservoir.r = r;
+                cs.reservoir.mesh = hit.mesh;
+                cs.reservoir.tri = hit.tri;
+                cs.reservoir.b1 = hit.b1;
+                cs.reservoir.b2 = hit.b2;
+                cs.reservoir.woWorld = -d;
+                cs.reservoir.view = uint32_t(view);
+              }
+            }
+            if (store) {
+              StoredReservoir& slot = (*store)[size_t(pixel) * size_t(spp) + size_t(s)];
+              slot = cs.reservoir;
+              if (!cs.hasReservoir) slot.r = Reservoir();  // misses and delta surfaces: empty (M = 0)
+              if (!cs.hasReservoir) slot.mesh = UINT32_MAX;
+            }
+            Rgb v = cs.value();
+            if (!isFinite(v)) {
+              ++nonFinite;
+              continue;
+            }
+            acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
+            if (!gradient) continue;
+            // Backpropagate dL/dI through each path's parameter-dependent factors.
+            for (int i = 0; i < cs.count; ++i) {
+              const DirectPath& p = cs.paths[i];
+              if (p.throughBsdf && cs.material >= 0) {
+                const Material& mat = scene_.materials[size_t(cs.material)];
+                int aOff = params_.albedoOffset(cs.material), rOff = params_.roughnessOffset(cs.material);
+                if (aOff >= 0 || rOff >= 0) {
+                  Rgb adjEval = pixelAdjoint * p.weight * p.emission;
+                  Vec3 wo = Frame(hit.ns).toLocal(-d);
+                  BsdfDerivatives dd = cs.bsdf.evalDerivatives(wo, p.wiLocal);
+                  if (aOff >= 0) {
+                    Rgb g = adjEval * dd.dAlbedo;
+                    if (mat.albedo.isConstant()) {
+                      for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(aOff + c), g[c]);
+                    } else {
+                      int tw = mat.albedo.image()->width();
+                      mat.albedo.forEachTexel(hit.uv, [&](int tx2, int ty2, float w) {
+                        for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(aOff + (ty2 * tw + tx2) * 3 + c), g[c] * w);
+                      });
+                    }
+                  }
+                  if (rOff >= 0 && mat.roughness.evalScalar(hit.uv) > kMinAlpha) {
+                    float g = adjEval.x * dd.dAlpha.x + adjEval.y * dd.dAlpha.y + adjEval.z * dd.dAlpha.z;
+                    if (mat.roughness.isConstant()) {
+                      pathGrad.add(uint32_t(rOff), g);
+                    } else {
+                      int tw = mat.roughness.image()->width();
+                      mat.roughness.forEachTexel(hit.uv, [&](int tx2, int ty2, float w) {
+                        pathGrad.add(uint32_t(rOff + ty2 * tw + tx2), g * w);
+                      });
+                    }
+                  }
+                }
+              }
+              int lOff = params_.intensityOffset(int(p.light.light));
+              if (lOff >= 0 && p.emissionPerUnit > 0.f) {
+                Rgb g = pixelAdjoint * p.weight * p.bsdfValue * p.emissionPerUnit;
+                for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(lOff + c), g[c]);
+              }
+              tiles[size_t(tile)].commit(pathGrad);
+            }
+          }
+          res.image.setRgb(x, y, Rgb(float(acc[0] / spp), float(acc[1] / spp), float(acc[2] / spp)));
+        }
+    }
+    std::lock_guard lock(mergeMutex);  // integer counters: order does not matter
+    res.rays += rays;
+    res.nonFinite += nonFinite;
+    res.restir.neighboursUsed += counters.neighboursUsed;
+    res.restir.shadingPoints += counters.shadingPoints;
+    res.restir.sumM += counters.sumM;
+  });
+  if (gradient) {
+    for (auto& t : tiles) {  // fixed tile order: deterministic for any thread count
+      t.reduceInto(*gradient);
+      res.nonFinite += t.nonFinite();
+    }
+  }
+  return res;
+}
+
+GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const GradientRequest& req, EngineSession& session) {
+  if (req.views.empty()) throw InputError("gradient request: no views");
+  for (int v : req.views)
+    if (v < 0 || size_t(v) >= scene_.cameras.size()) throw InputError("gradient request: view " + std::to_string(v) + " out of range");
+  if (!req.renderOnly)
+    for (int v : req.views)
+      if (size_t(v) >= targets_.size() || targets_[size_t(v)].empty())
+        throw InputError("gradient request: no target image for view " + std::to_string(v));
+  params_.write(theta, scene_);
+  GradientResult out;
+  out.gradient.assign(params_.size(), 0.0);
+  GradientStats& st = out.stats;
+  const size_t pixels = size_t(scene_.width) * size_t(scene_.height);
+  const bool restir = opt_.method == GradientMethod::Restir;
+  const bool restirDerivative = restir && !opt_.forwardOnly;
+
+  auto t0 = std::chrono::steady_clock::now();
+  if (restir) {
+    session.primal.refresh(scene_);
+    if (restirDerivative) session.derivative.refresh(scene_);
+  }
+  st.secondsReservoirUpdate += secondsSince(t0);
+
+  // Primal pass: images, loss, dL/dI.
+  t0 = std::chrono::steady_clock::now();
+  std::vector<StoredReservoir> newPrimal, newDerivative;
+  if (restir) newPrimal.resize(req.views.size() * pixels * size_t(opt_.sppPrimal));
+  std::vector<Image> adjoints(req.views.size());
+  RestirCounters counters;
+  for (size_t k = 0; k < req.views.size(); ++k) {
+    std::vector<StoredReservoir> store(restir ? pixels * size_t(opt_.sppPrimal) : 0);
+    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, restir ? &store : nullptr, nullptr, nullptr);
+    if (restir) std::move(store.begin(), store.end(), newPrimal.begin() + long(k * store.size()));
+    st.rays += pr.rays;
+    st.nonFiniteSamples += pr.nonFinite;
+    counters.neighboursUsed += pr.restir.neighboursUsed;
+    counters.shadingPoints += pr.restir.shadingPoints;
+    counters.sumM += pr.restir.sumM;
+    if (!req.renderOnly) {
+      double l = imageLoss(opt_.loss, pr.image, targets_[size_t(req.views[k])], &adjoints[k], int(req.views.size()));
+      st.viewLoss.push_back(l * double(req.views.size()));
+      st.loss += l;
+    }
+    out.renders.push_back(std::move(pr.image));
+  }
+  st.secondsPrimal = secondsSince(t0);
+
+  // Derivative pass: fresh paths weighted by dL/dI (or, during burn-in, only the reservoirs).
+  t0 = std::chrono::steady_clock::now();
+  if (!req.renderOnly || restirDerivative) {
+    if (restirDerivative) newDerivative.resize(req.views.size() * pixels * size_t(opt_.sppGradient));
+    for (size_t k = 0; k < req.views.size(); ++k) {
+      std::vector<StoredReservoir> store(restirDerivative ? pixels * size_t(opt_.sppGradient) : 0);
+      PassResult pr = runPass(req.views[k], kDerivative, req, restirDerivative ? &session.derivative : nullptr,
+                              restirDerivative ? &store : nullptr, req.renderOnly ? nullptr : &adjoints[k],
+                              req.renderOnly ? nullptr : &out.gradient);
+      if (restirDerivative) std::move(store.begin(), store.end(), newDerivative.begin() + long(k * store.size()));
+      st.rays += pr.rays;
+      st.nonFiniteSamples += pr.nonFinite;
+    }
+  }
+  st.secondsDerivative = secondsSince(t0);
+
+  // Next step's reservoirs: this step's, plus the old ones no view of the batch could see (Alg. 8).
+  t0 = std::chrono::steady_clock::now();
+  auto rebuild = [&](ReservoirStore& chain, std::vector<StoredReservoir>& fresh) {
+    std::vector<StoredReservoir> next;
+    next.reserve(fresh.size());
+    for (auto& r : fresh)
+      if (r.mesh != UINT32_MAX) next.push_back(r);
+    if (opt_.preserveOccluded) {
+      for (auto& r : chain.items) {
+        bool seen = false;
+        for (int v : req.views)
+          if (visibleFromCamera(scene_, scene_.cameras[size_t(v)], r.p, r.n)) { seen = true; break; }
+        if (!seen) {
+          next.push_back(r);
+          ++st.reservoirsPreserved;
+        }
+      }
+    }
+    chain.items = std::move(next);
+  };
+  if (restir) rebuild(session.primal, newPrimal);
+  if (restirDerivative) rebuild(session.derivative, newDerivative);
+  st.secondsReservoirUpdate += secondsSince(t0);
+  st.reservoirs = session.primal.items.size() + session.derivative.items.size();
+  if (counters.shadingPoints) {
+    st.meanNeighbours = double(counters.neighboursUsed) / double(counters.shadingPoints);
+    st.meanM = counters.sumM / double(counters.shadingPoints);
+  }
+  return out;
+}
+
+}  // namespace invr

@@ -1,0 +1,24 @@
+// Image losses and their adjoints dL/dI. The loss of a view is the mean over pixels and channels;
+// a mini-batch loss is the mean over its views.
+//   l2:           (I - T)^2
+//   relative_l2:  (I - T)^2 / (T^2 + 0.01)   (denominator from the target: a constant in I)
+//   l1:           |I - T|   (its adjoint sign(I - T) is biased when I is a noisy estimate)
+#pragma once
+
+#include <string>
+
+#include "core/image/image.h"
+
+namespace invr {
+
+enum class LossKind { L2, RelativeL2, L1 };
+
+LossKind lossKindFromName(const std::string& name);  // throws InputError
+const char* lossName(LossKind kind);
+
+// Loss of `rendered` against `target` (same size, 3 channels). If adjoint is non-null it receives
+// dLoss/dI per pixel and channel (already divided by the pixel and channel count, and by
+// viewsInBatch so mini-batch means come out right).
+double imageLoss(LossKind kind, const Image& rendered, const Image& target, Image* adjoint, int viewsInBatch = 1);
+
+}  // namespace invr

@@ -1,0 +1,173 @@
+#include "core/diff/parameters.h"
+
+#include <limits>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace invr {
+
+namespace {
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> parts;
+  std::stringstream ss(s);
+  std::string part;
+  while (std::getline(ss, part, '/')) parts.push_back(part);
+  return parts;
+}
+
+int materialIndex(const Scene& scene, const std::string& name) {
+  for (size_t i = 0; i < scene.materials.size(); ++i)
+    if (scene.materials[i].name == name) return int(i);
+  return -1;
+}
+
+int lightIndex(const Scene& scene, const std::string& name) {
+  for (size_t i = 0; i < scene.lights.size(); ++i)
+    if (scene.lights[i].name == name) return int(i);
+  return -1;
+}
+
+}  // namespace
+
+const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::string& name, const ParameterOptions& o) {
+  auto fail = [&](const std::string& why) -> const ParameterSlot& {
+    throw InputError("parameter '" + name + "': " + why);
+  };
+  if (find(name)) return fail("listed twice");
+  auto parts = split(name);
+  if (parts.size() != 3) return fail("expected materials/<name>/albedo|roughness or lights/<name>/intensity");
+  ParameterSlot slot;
+  slot.name = name;
+  if (parts[0] == "materials") {
+    int m = materialIndex(scene, parts[1]);
+    if (m < 0) return fail("no material named '" + parts[1] + "'");
+    const Material& mat = scene.materials[size_t(m)];
+    slot.material = m;
+    const Texture* tex = nullptr;
+    if (parts[2] == "albedo") {
+      if (!mat.hasAlbedo()) return fail("material '" + parts[1] + "' has no albedo (only diffuse and rough_plastic do)");
+      slot.kind = ParamKind::Albedo;
+      slot.channels = 3;
+      slot.lower = 0.f;
+      slot.upper = 1.f;
+      tex = &mat.albedo;
+    } else if (parts[2] == "roughness") {
+      if (!mat.hasRoughness()) return fail("material '" + parts[1] + "' has no roughness (only rough_conductor and rough_plastic do)");
+      slot.kind = ParamKind::Roughness;
+      slot.channels = 1;
+      slot.lower = 0.01f;
+      slot.upper = 1.f;
+      tex = &mat.roughness;
+    } else {
+      return fail("unknown material property '" + parts[2] + "' (use albedo or roughness)");
+    }
+    if (!tex->isConstant()) {
+      if (tex->scale() == 0.f) return fail("texture scale is 0, so its texels cannot be recovered");
+      slot.width = tex->image()->width();
+      slot.height = tex->image()->height();
+    }
+  } else if (parts[0] == "lights") {
+    int l = lightIndex(scene, parts[1]);
+    if (l < 0) return fail("no light named '" + parts[1] + "'");
+    if (parts[2] != "intensity") return fail("unknown light property '" + parts[2] + "' (use intensity)");
+    if (scene.lights[size_t(l)].kind == LightKind::Environment) return fail("image environment maps are not optimisable yet");
+    slot.kind = ParamKind::LightIntensity;
+    slot.light = l;
+    slot.channels = 3;
+    slot.lower = 0.f;
+    slot.upper = std::numeric_limits<float>::infinity();
+  } else {
+    return fail("unknown parameter group '" + parts[0] + "' (use materials or lights)");
+  }
+  slot.size = uint32_t(slot.channels * (slot.width > 0 ? slot.width * slot.height : 1));
+  slot.offset = uint32_t(size_);
+  if (o.lower) slot.lower = *o.lower;
+  if (o.upper) slot.upper = *o.upper;
+  if (o.learningRate) slot.learningRate = *o.learningRate;
+  if (!(slot.lower <= slot.upper)) return fail("bounds are inverted (lower " + std::to_string(slot.lower) + " > upper " + std::to_string(slot.upper) + ")");
+  if (!(slot.learningRate > 0.f) || !std::isfinite(slot.learningRate)) return fail("learning rate must be a positive finite number");
+  size_ += slot.size;
+  auto& table = slot.kind == ParamKind::Albedo ? albedo_ : slot.kind == ParamKind::Roughness ? roughness_ : intensity_;
+  int owner = slot.material >= 0 ? slot.material : slot.light;
+  if (table.size() <= size_t(owner)) table.resize(size_t(owner) + 1, -1);
+  table[size_t(owner)] = int(slot.offset);
+  slots_.push_back(slot);
+  return slots_.back();
+}
+
+const ParameterSlot* ParameterRegistry::find(const std::string& name) const {
+  for (const auto& s : slots_)
+    if (s.name == name) return &s;
+  return nullptr;
+}
+
+std::vector<float> ParameterRegistry::read(const Scene& scene) const {
+  std::vector<float> theta(size_);
+  for (const auto& s : slots_) {
+    float* out = theta.data() + s.offset;
+    if (s.kind == ParamKind::LightIntensity) {
+      const Light& l = scene.lights[size_t(s.light)];
+      Rgb v = (l.kind == LightKind::Point || l.kind == LightKind::Spot) ? l.intensity : l.radiance;
+      out[0] = v.x; out[1] = v.y; out[2] = v.z;
+      continue;
+    }
+    const Material& m = scene.materials[size_t(s.material)];
+    const Texture& t = s.kind == ParamKind::Albedo ? m.albedo : m.roughness;
+    if (t.isConstant()) {
+      for (int c = 0; c < s.channels; ++c) out[c] = t.constant()[c];
+      continue;
+    }
+    const Image& im = *t.image();
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < s.width; ++x)
+        for (int c = 0; c < s.channels; ++c) out[(y * s.width + x) * s.channels + c] = im.at(x, y, std::min(c, im.channels() - 1)) * t.scale();
+  }
+  return theta;
+}
+
+void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, bool refreshSampling) const {
+  if (theta.size() != size_) throw InputError("parameter vector has " + std::to_string(theta.size()) + " values, expected " + std::to_string(size_));
+  bool emissionChanged = false;
+  for (const auto& s : slots_) {
+    const float* in = theta.data() + s.offset;
+    if (s.kind == ParamKind::LightIntensity) {
+      Light& l = scene.lights[size_t(s.light)];
+      Rgb v(in[0], in[1], in[2]);
+      if (l.kind == LightKind::Point || l.kind == LightKind::Spot) l.intensity = v;
+      else l.radiance = v;
+      emissionChanged = true;
+      continue;
+    }
+    Material& m = scene.materials[size_t(s.material)];
+    Texture& t = s.kind == ParamKind::Albedo ? m.albedo : m.roughness;
+    if (t.isConstant()) {
+      t.setConstant(s.channels == 3 ? Rgb(in[0], in[1], in[2]) : Rgb(in[0]));
+      continue;
+    }
+    Image& im = *t.mutableImage();
+    float inv = 1.f / t.scale();
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < s.width; ++x)
+        for (int c = 0; c < im.channels(); ++c) im.at(x, y, c) = in[(y * s.width + x) * s.channels + std::min(c, s.channels - 1)] * inv;
+  }
+  if (emissionChanged && refreshSampling) scene.updateLightSelection();
+}
+
+void ParameterRegistry::clampToBounds(std::vector<float>& theta) const {
+  for (const auto& s : slots_)
+    for (uint32_t i = 0; i < s.size; ++i) theta[s.offset + i] = std::clamp(theta[s.offset + i], s.lower, s.upper);
+}
+
+std::string describeParameters(const ParameterRegistry& r) {
+  std::string out;
+  for (const auto& s : r.slots()) {
+    out += s.name + "[" + std::to_string(s.size) + "]";
+    if (s.width > 0) out += " (" + std::to_string(s.width) + "x" + std::to_string(s.height) + " texture)";
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace invr

@@ -1,0 +1,65 @@
+// Named optimisation parameters mapped into one flat vector theta.
+//   materials/<name>/albedo     diffuse or rough_plastic albedo: 3 values, or width*height*3 texels
+//   materials/<name>/roughness  GGX alpha of rough_conductor/rough_plastic: 1 value, or width*height
+//   lights/<name>/intensity     area/constant-environment radiance or point/spot intensity: 3 values
+// Values are the effective ones (texture scale applied). Only registered parameters get derivative
+// storage.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/scene/scene.h"
+
+namespace invr {
+
+enum class ParamKind { Albedo, Roughness, LightIntensity };
+
+struct ParameterSlot {
+  std::string name;
+  ParamKind kind = ParamKind::Albedo;
+  uint32_t offset = 0, size = 0;
+  int channels = 3;  // values per texel (3 colour, 1 scalar)
+  int material = -1, light = -1;
+  int width = 0, height = 0;  // texture resolution; 0 for constants
+  float lower = 0.f, upper = 1.f;
+  float learningRate = 0.01f;
+};
+
+struct ParameterOptions {
+  std::optional<float> lower, upper, learningRate;
+};
+
+class ParameterRegistry {
+ public:
+  // Throws InputError naming the parameter when it does not exist in the scene or is repeated.
+  const ParameterSlot& add(const Scene& scene, const std::string& name, const ParameterOptions& options = {});
+
+  size_t size() const { return size_; }
+  const std::vector<ParameterSlot>& slots() const { return slots_; }
+  const ParameterSlot* find(const std::string& name) const;
+
+  std::vector<float> read(const Scene& scene) const;
+  // Writes theta into the scene's materials and lights; refreshes light selection when emission
+  // changed (unless refreshSampling is false: finite-difference references keep sampling fixed so
+  // that common random numbers stay common). Throws InputError on a size mismatch.
+  void write(const std::vector<float>& theta, Scene& scene, bool refreshSampling = true) const;
+  void clampToBounds(std::vector<float>& theta) const;
+
+  // Offsets of a material's or light's parameters in theta, or -1 if not optimised.
+  int albedoOffset(int material) const { return lookup(albedo_, material); }
+  int roughnessOffset(int material) const { return lookup(roughness_, material); }
+  int intensityOffset(int light) const { return lookup(intensity_, light); }
+
+ private:
+  static int lookup(const std::vector<int>& v, int i) { return i >= 0 && size_t(i) < v.size() ? v[size_t(i)] : -1; }
+  std::vector<ParameterSlot> slots_;
+  std::vector<int> albedo_, roughness_, intensity_;
+  size_t size_ = 0;
+};
+
+// All parameters of a zoo-style name prefix, e.g. every registered slot: "name[i]" for logs.
+std::string describeParameters(const ParameterRegistry& registry);
+
+}  // namespace invr

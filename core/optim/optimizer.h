@@ -1,0 +1,29 @@
+// Gradient-descent updates with per-parameter learning rates and bound clamping. The state
+// (moments, step count) is plain data so the server can checkpoint it.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/diff/parameters.h"
+
+namespace invr {
+
+enum class OptimizerKind { Adam, Sgd };
+
+struct OptimizerState {
+  std::vector<double> m, v;  // Adam moments
+  uint64_t step = 0;
+};
+
+struct AdamSettings {
+  double beta1 = 0.9, beta2 = 0.999, epsilon = 1e-8;
+};
+
+// Applies one update to theta in place (then clamps to each slot's bounds).
+void optimizerStep(OptimizerKind kind, const ParameterRegistry& params, const std::vector<double>& gradient,
+                   std::vector<float>& theta, OptimizerState& state, const AdamSettings& adam = {});
+
+OptimizerKind optimizerKindFromName(const std::string& name);  // throws InputError
+
+}  // namespace invr

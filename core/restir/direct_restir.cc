@@ -1,0 +1,82 @@
+#include "core/restir/direct_restir.h"
+
+namespace invr {
+
+namespace {
+
+// Target of light sample y at a stored reservoir's shading point, in the current scene (the
+// support test of Alg. 3, line 9). Uses that point's own view direction.
+float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRef& y, bool visibility, PathContext* ctx) {
+  SurfaceHit h = scene.surfaceAt(q.mesh, q.tri, q.b1, q.b2);
+  Bsdf b = scene.materials[size_t(scene.meshMaterial[h.mesh])].at(h.uv);
+  ShadingPoint sp{&h, &b, Frame(h.ns), Vec3(), q.woWorld};
+  sp.wo = sp.frame.toLocal(q.woWorld);
+  LightSample ls = evalLightSample(scene, y, h.p);
+  float t = risTarget(sp, ls);
+  if (t > 0.f && visibility && traceShadow(scene, sp, ls, ctx)) t = 0.f;
+  return t;
+}
+
+}  // namespace
+
+// Combination rule: Alg. 3 with the Z normalisation (Bitterli et al. 2020, Alg. 6). Each input j
+// (the fresh reservoir and every reused one) enters with weight p_hat(y_j; here) W_j M_j, and the
+// result is normalised by Z = sum of M_j over the inputs that could have produced the chosen y
+// (p_hat(y; p_j) > 0). Because the M_j act as fixed confidence weights normalised over the inputs
+// whose support contains y, the result is unbiased for any M_j, so capping M (the M-cap) changes
+// variance, never the mean. We chose Z over generalised-RIS MIS weights because it needs one
+// target evaluation per neighbour for the chosen sample only (k + 1 instead of (k + 1)^2). The
+// support is evaluated in the current configuration; material and light parameters bounded away
+// from zero do not change it.
+bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& s,
+                        const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
+                        RestirCounters* counters) {
+  LightSample chosen;
+  Rgb chosenF(0.f);
+  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF);
+
+  constexpr int kMaxNeighbours = 32;
+  uint32_t nb[kMaxNeighbours];
+  float nbM[kMaxNeighbours];
+  int k = (prev && !prev->empty())
+              ? prev->neighbours(sp.hit->p, sp.hit->ns, std::min(s.neighbours, kMaxNeighbours), s.radius, s.normalDot, nb)
+              : 0;
+
+  Reservoir c;
+  c.M = fresh.M;
+  c.stream(fresh.y, fresh.W > 0.f ? fresh.wSum : 0.0, fresh.targetY, sampler.next1D());
+  for (int i = 0; i < k; ++i) {
+    const StoredReservoir& q = prev->items[nb[i]];
+    float u = sampler.next1D();
+    nbM[i] = std::min(q.r.M, s.mCap);
+    c.M += nbM[i];
+    if (!(q.r.W > 0.f)) continue;
+    LightSample ls = evalLightSample(scene, q.r.y, sp.hit->p);
+    Rgb f(0.f);
+    float t = risTarget(sp, ls, &f);
+    if (t > 0.f && s.visibilityInTarget && traceShadow(scene, sp, ls, ctx)) t = 0.f;
+    if (c.stream(q.r.y, double(t) * double(q.r.W) * double(nbM[i]), t, u)) {
+      chosen = ls;
+      chosenF = f;
+    }
+  }
+  float Z = 0.f;
+  if (c.targetY > 0.f) {
+    Z = fresh.M;  // fresh candidates come from light sampling here: they cover every y with target > 0
+    for (int i = 0; i < k; ++i)
+      if (targetAt(scene, prev->items[nb[i]], c.y, s.visibilityInTarget, ctx) > 0.f) Z += nbM[i];
+  }
+  c.finalize(Z);
+  combined = c;
+  if (counters) {
+    counters->neighboursUsed += uint64_t(k);
+    counters->shadingPoints += 1;
+    counters->sumM += c.M;
+  }
+  if (!(c.W > 0.f)) return false;
+  if (!s.visibilityInTarget && traceShadow(scene, sp, chosen, ctx)) return false;
+  out = pathToLight(sp, chosen, chosenF, c.W);
+  return true;
+}
+
+}  // namespace invr

@@ -1,0 +1,33 @@
+// Small scenes for the derivative tests: fast to render, one parameter of each kind.
+#pragma once
+
+#include "test_util.h"
+
+namespace invr::test {
+
+// A textured diffuse wall and a rough metal plate lit by an area light, a point light and a dim
+// constant environment. 32x24 pixels.
+inline constexpr const char* kDiffScene = R"({
+  "materials": [
+    {"name": "wall", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 4,
+      "color_a": {"r": 0.7, "g": 0.6, "b": 0.5}, "color_b": {"r": 0.3, "g": 0.35, "b": 0.4}}}}},
+    {"name": "metal", "rough_conductor": {"roughness": {"value": 0.3}}},
+    {"name": "lamp", "diffuse": {"albedo": {"value": 0.5}}}
+  ],
+  "shapes": [
+    {"name": "wall", "material": "wall", "quad": {}, "transform": {"scale": {"x": 2, "y": 1.5, "z": 1}}},
+    {"name": "plate", "material": "metal", "quad": {},
+     "transform": {"scale": {"x": 0.6, "y": 0.6, "z": 1}, "rotate_xyz_degrees": {"x": -60}, "translate": {"x": 0.5, "y": -0.6, "z": 0.6}}},
+    {"name": "lamp", "material": "lamp", "quad": {},
+     "transform": {"scale": {"x": 0.3, "y": 0.3, "z": 1}, "rotate_xyz_degrees": {"x": 70}, "translate": {"x": -0.8, "y": 1.2, "z": 1.2}}}
+  ],
+  "lights": [
+    {"name": "lamp", "area": {"shape": "lamp", "radiance": {"r": 8, "g": 8, "b": 7}}},
+    {"name": "bulb", "point": {"position": {"x": 1.2, "y": 0.8, "z": 1.8}, "intensity": {"r": 1.5, "g": 1.4, "b": 1.2}}},
+    {"name": "sky", "constant_environment": {"radiance": {"r": 0.05, "g": 0.05, "b": 0.06}}}
+  ],
+  "views": [{"eye": {"z": 3.5}, "target": {}, "fov_y_degrees": 45}],
+  "film": {"width": 32, "height": 24}
+})";
+
+}  // namespace invr::test

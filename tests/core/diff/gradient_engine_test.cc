@@ -1,0 +1,180 @@
+// The gradient engine against finite differences of the converged loss, for each parameter kind
+// (albedo texel, scalar roughness, light intensity) and each light-sampling strategy.
+//
+// Reference: the forward renderer (independent code) at theta +- h with common random numbers
+// and sampling distributions held fixed, converged loss L = mean (I - T)^2 estimated without bias. Its own noise is
+// measured over independent seeds. Estimate: the mean of the engine's gradient over independent
+// sessions (for restir each session burns in first, so reservoirs are reused). The check is
+// |mean - fd| <= 4 sqrt(se_mean^2 + se_fd^2).
+#include "core/diff/gradient_engine.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <map>
+
+#include "core/diff/diff_scenes.h"
+#include <tbb/task_arena.h>
+#include "core/error.h"
+#include "core/render/renderer.h"
+
+namespace invr {
+namespace {
+
+struct Fixture {
+  std::unique_ptr<Scene> scene = test::sceneFromJson(test::kDiffScene);
+  ParameterRegistry reg;
+  std::vector<float> truth, theta;
+  Image target;
+
+  Fixture() {
+    reg.add(*scene, "materials/wall/albedo");
+    reg.add(*scene, "materials/metal/roughness");
+    reg.add(*scene, "lights/bulb/intensity");
+    reg.add(*scene, "lights/lamp/intensity");
+    truth = reg.read(*scene);
+    target = render(truth, 1024, 5);
+    reg.write(truth, *scene);
+    theta = truth;
+    for (auto& v : theta) v *= 0.8f;
+  }
+  // Renders with sampling distributions frozen at whatever the scene has (see finiteDifference).
+  Image render(const std::vector<float>& t, int spp, uint64_t seed) {
+    reg.write(t, *scene, /*refreshSampling=*/false);
+    RenderOptions o;
+    o.spp = spp;
+    o.seed = seed;
+    return renderView(*scene, 0, o).image;
+  }
+  // The converged L2 loss, estimated without bias: mean of (I_a - T)(I_b - T) over pixels and
+  // channels with I_a, I_b independent renders (a single render's (I - T)^2 would add Var(I),
+  // whose derivative is not part of the gradient).
+  double convergedLoss(const std::vector<float>& t, uint64_t seed) {
+    Image a = render(t, 512, 2 * seed + 100), b = render(t, 512, 2 * seed + 101);
+    double sum = 0;
+    for (size_t i = 0; i < a.data().size(); ++i) sum += double(a.data()[i] - target.data()[i]) * double(b.data()[i] - target.data()[i]);
+    return sum / double(a.data().size());
+  }
+  // Central difference of the converged loss in component k, with its standard error. Light
+  // selection is set once at theta and kept for both sides, so random numbers stay common.
+  const test::MeanSE& finiteDifference(size_t k) {
+    auto it = fdCache.find(k);
+    if (it != fdCache.end()) return it->second;
+    reg.write(theta, *scene);
+    test::MeanSE fd;
+    float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
+    for (uint64_t seed = 0; seed < 4; ++seed) {
+      auto plus = theta, minus = theta;
+      plus[k] += h;
+      minus[k] -= h;
+      fd.add((convergedLoss(plus, seed) - convergedLoss(minus, seed)) / (2.0 * h));
+    }
+    return fdCache[k] = fd;
+  }
+  std::map<size_t, test::MeanSE> fdCache;
+};
+
+Fixture& fixture() {
+  static Fixture f;
+  return f;
+}
+
+void checkMethod(GradientMethod method, bool forwardOnly = false) {
+  Fixture& f = fixture();
+  GradientOptions o;
+  o.method = method;
+  o.forwardOnly = forwardOnly;
+  o.sppPrimal = 4;
+  o.sppGradient = 4;
+  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  const int sessions = 48, burnIn = method == GradientMethod::Restir ? 3 : 0;
+  std::vector<test::MeanSE> grad(f.reg.size());
+  for (int i = 0; i < sessions; ++i) {
+    EngineSession session;
+    GradientRequest r;
+    r.views = {0};
+    r.seed = 1000 + uint64_t(i);
+    for (int b = 0; b < burnIn; ++b) {
+      GradientRequest rb = r;
+      rb.renderOnly = true;
+      rb.step = uint64_t(b);
+      engine.evaluate(f.theta, rb, session);
+    }
+    r.step = uint64_t(burnIn);
+    auto g = engine.evaluate(f.theta, r, session).gradient;
+    for (size_t k = 0; k < g.size(); ++k) grad[k].add(g[k]);
+  }
+  // One albedo texel of each checker colour, the roughness, one channel of each light.
+  for (size_t k : {size_t(0), size_t(4), size_t(48), size_t(49), size_t(50), size_t(53)}) {
+    const test::MeanSE& fd = f.finiteDifference(k);
+    double se = std::sqrt(grad[k].se() * grad[k].se() + fd.se() * fd.se());
+    std::printf("%-6s component %2zu: gradient %+.4e (se %.1e), finite difference %+.4e (se %.1e)\n",
+                gradientMethodName(method), k, grad[k].mean, grad[k].se(), fd.mean, fd.se());
+    EXPECT_NEAR(grad[k].mean, fd.mean, test::kSigmas * se)
+        << gradientMethodName(method) << " component " << k << " (" << (k < 48 ? "albedo" : k == 48 ? "roughness" : "intensity")
+        << ")";
+    // The comparison must have power: the combined SE resolves a 30 % error.
+    EXPECT_LT(test::kSigmas * se, 0.3 * std::abs(fd.mean)) << gradientMethodName(method) << " component " << k;
+  }
+}
+
+TEST(GradientEngine, PtMatchesFiniteDifferences) { checkMethod(GradientMethod::Pt); }
+TEST(GradientEngine, RisMatchesFiniteDifferences) { checkMethod(GradientMethod::Ris); }
+TEST(GradientEngine, RestirMatchesFiniteDifferences) { checkMethod(GradientMethod::Restir); }
+TEST(GradientEngine, RestirForwardOnlyMatchesFiniteDifferences) { checkMethod(GradientMethod::Restir, true); }
+
+TEST(GradientEngine, DeterministicForAnyThreadCount) {
+  Fixture& f = fixture();
+  GradientOptions o;
+  o.method = GradientMethod::Restir;
+  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  std::vector<std::vector<double>> results;
+  for (int threads : {1, 2, 3}) {
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+      EngineSession s;
+      GradientRequest r;
+      r.views = {0};
+      r.seed = 9;
+      engine.evaluate(f.theta, r, s);
+      r.step = 1;
+      results.push_back(engine.evaluate(f.theta, r, s).gradient);
+    });
+  }
+  EXPECT_EQ(results[0], results[1]);
+  EXPECT_EQ(results[0], results[2]);
+}
+
+TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {
+  Fixture& f = fixture();
+  GradientOptions o;
+  o.method = GradientMethod::Restir;
+  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  EngineSession s;
+  GradientRequest r;
+  r.views = {0};
+  auto first = engine.evaluate(f.theta, r, s);
+  EXPECT_EQ(first.stats.meanNeighbours, 0.0);  // nothing to reuse yet
+  r.step = 1;
+  auto second = engine.evaluate(f.theta, r, s);
+  EXPECT_GT(second.stats.meanNeighbours, 1.0);
+  EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 2);
+  EXPECT_GT(second.stats.reservoirs, 0u);
+}
+
+TEST(GradientEngine, BadRequestsAreInputErrors) {
+  Fixture& f = fixture();
+  GradientEngine engine(*f.scene, f.reg, {f.target}, {});
+  EngineSession s;
+  GradientRequest r;
+  EXPECT_THROW(engine.evaluate(f.theta, r, s), InputError);  // no views
+  r.views = {3};
+  EXPECT_THROW(engine.evaluate(f.theta, r, s), InputError);
+  r.views = {0};
+  EXPECT_THROW(engine.evaluate(std::vector<float>(3), r, s), InputError);  // wrong theta size
+  GradientEngine noTarget(*f.scene, f.reg, {}, {});
+  EXPECT_THROW(noTarget.evaluate(f.theta, r, s), InputError);
+}
+
+}  // namespace
+}  // namespace invr

@@ -1,0 +1,97 @@
+#include "core/optim/optimizer.h"
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "test_util.h"
+
+namespace invr {
+namespace {
+
+constexpr const char* kScene = R"({
+  "materials": [{"name": "m", "diffuse": {"albedo": {"constant": {"r": 0.5, "g": 0.5, "b": 0.5}}}},
+                {"name": "g", "rough_plastic": {"roughness": {"value": 0.4}}}],
+  "shapes": [{"name": "q", "material": "m", "quad": {}}, {"name": "p", "material": "g", "box": {}}],
+  "lights": [{"name": "l", "point": {"position": {"z": 2}, "intensity": {"r": 1, "g": 1, "b": 1}}}],
+  "views": [{"eye": {"z": 3}, "target": {}}]
+})";
+
+TEST(Optimizer, AdamConvergesOnAQuadraticAndRespectsBounds) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  ParameterOptions o;
+  o.learningRate = 0.05f;
+  reg.add(*scene, "materials/m/albedo", o);
+  std::vector<float> theta = reg.read(*scene);
+  const float target[3] = {0.2f, 0.9f, 1.7f};  // the last is outside [0, 1]: must stop at 1
+  OptimizerState st;
+  for (int i = 0; i < 400; ++i) {
+    std::vector<double> g(3);
+    for (int c = 0; c < 3; ++c) g[size_t(c)] = 2.0 * (theta[size_t(c)] - target[c]);
+    optimizerStep(OptimizerKind::Adam, reg, g, theta, st);
+  }
+  EXPECT_NEAR(theta[0], 0.2f, 0.01f);
+  EXPECT_NEAR(theta[1], 0.9f, 0.01f);
+  EXPECT_EQ(theta[2], 1.f);
+  EXPECT_EQ(st.step, 400u);
+}
+
+TEST(Optimizer, SgdTakesExactSteps) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  ParameterOptions o;
+  o.learningRate = 0.1f;
+  reg.add(*scene, "materials/g/roughness", o);
+  std::vector<float> theta = reg.read(*scene);
+  ASSERT_EQ(theta.size(), 1u);
+  EXPECT_FLOAT_EQ(theta[0], 0.4f);
+  OptimizerState st;
+  optimizerStep(OptimizerKind::Sgd, reg, {1.0}, theta, st);
+  EXPECT_FLOAT_EQ(theta[0], 0.3f);
+  optimizerStep(OptimizerKind::Sgd, reg, {100.0}, theta, st);
+  EXPECT_FLOAT_EQ(theta[0], 0.01f);  // roughness lower bound
+}
+
+TEST(Parameters, NamesResolveOrFailClearly) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  EXPECT_EQ(reg.add(*scene, "lights/l/intensity").size, 3u);
+  auto err = [&](const std::string& name) {
+    try {
+      reg.add(*scene, name);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(err("materials/nope/albedo").find("no material named 'nope'"), std::string::npos);
+  EXPECT_NE(err("materials/m/roughness").find("has no roughness"), std::string::npos);
+  EXPECT_NE(err("materials/m/shininess").find("unknown material property"), std::string::npos);
+  EXPECT_NE(err("lights/l/intensity").find("listed twice"), std::string::npos);
+  EXPECT_NE(err("lights/zz/intensity").find("no light named"), std::string::npos);
+  EXPECT_NE(err("cameras/a/fov").find("unknown parameter group"), std::string::npos);
+  ParameterOptions inverted;
+  inverted.lower = 1.f;
+  inverted.upper = 0.f;
+  EXPECT_THROW(reg.add(*scene, "materials/m/albedo", inverted), InputError);
+}
+
+TEST(Parameters, WriteThenReadRoundTripsThroughTextures) {
+  auto scene = test::sceneFromJson(R"({
+    "materials": [{"name": "t", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 8}, "scale": 0.5}}}],
+    "shapes": [{"name": "q", "material": "t", "quad": {}}],
+    "lights": [{"name": "l", "point": {"position": {"z": 2}, "intensity": {"r": 1}}}],
+    "views": [{"eye": {"z": 3}, "target": {}}]})");
+  ParameterRegistry reg;
+  const auto& slot = reg.add(*scene, "materials/t/albedo");
+  EXPECT_EQ(slot.size, 8u * 8u * 3u);
+  std::vector<float> theta(reg.size());
+  for (size_t i = 0; i < theta.size(); ++i) theta[i] = float(i % 7) / 10.f;
+  reg.write(theta, *scene);
+  auto back = reg.read(*scene);
+  for (size_t i = 0; i < theta.size(); ++i) EXPECT_NEAR(back[i], theta[i], 1e-6f);
+  EXPECT_THROW(reg.write(std::vector<float>(5), *scene), InputError);
+}
+
+}  // namespace
+}  // namespace invr
