@@ -111,6 +111,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
     runBenchRays(*args);
     exitCode = 0;
   });
+  addBenchGradientCommands(*bench, exitCode);
 }
 
 }  // namespace invr::cli

@@ -1,6 +1,7 @@
 // Benchmarks print a readable table, or with --json one JSON object with the named figures.
 #pragma once
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <utility>
@@ -13,9 +14,15 @@ class BenchReport {
   explicit BenchReport(std::string title) : title_(std::move(title)) {}
   void text(const std::string& key, const std::string& value) { rows_.push_back({key, "\"" + value + "\"", value}); }
   void number(const std::string& key, double value, const std::string& unit = "") {
+    rows_.push_back({key, fmt(value), fmt(value) + (unit.empty() ? "" : " " + unit)});
+  }
+  // A pre-formatted JSON value (e.g. an object) with its table display.
+  void raw(const std::string& key, const std::string& json, const std::string& display) { rows_.push_back({key, json, display}); }
+  static std::string fmt(double v) {
+    if (!std::isfinite(v)) return "null";
     char buf[64];
-    std::snprintf(buf, sizeof buf, "%.6g", value);
-    rows_.push_back({key, buf, std::string(buf) + (unit.empty() ? "" : " " + unit)});
+    std::snprintf(buf, sizeof buf, "%.6g", v);
+    return buf;
   }
   void print(bool json) const {
     if (json) {

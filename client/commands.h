@@ -8,5 +8,6 @@ namespace invr::cli {
 void addRenderCommand(CLI::App& app, int& exitCode);
 void addZooCommand(CLI::App& app, int& exitCode);
 void addBenchCommand(CLI::App& app, int& exitCode);
+void addBenchGradientCommands(CLI::App& bench, int& exitCode);
 
 }  // namespace invr::cli

@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range2d.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <chrono>
 #include <mutex>
@@ -120,8 +121,7 @@ GradientEngine::GradientEngine(Scene& scene, const ParameterRegistry& params, st
     : scene_(scene), params_(params), targets_(std::move(targets)), opt_(options) {
   if (opt_.sppPrimal <= 0 || opt_.sppGradient <= 0) throw InputError("spp_primal and spp_gradient must be positive");
   if (opt_.restir.candidates <= 0) throw InputError("ris_candidates must be positive");
-  if (!(opt_.radiusFraction > 0.f)) throw InputError("restir radius_fraction must be positive");
-  opt_.restir.radius = opt_.radiusFraction * scene_.radius;
+  if (!(opt_.radiusPixels > 0.f)) throw InputError("restir radius_pixels must be positive");
 }
 
 struct GradientEngine::PassResult {
@@ -140,6 +140,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
   const int spp = pass == kPrimal ? opt_.sppPrimal : opt_.sppGradient;
   const Camera& cam = scene_.cameras[size_t(view)];
   const bool useRestir = opt_.method == GradientMethod::Restir && !(pass == kDerivative && opt_.forwardOnly);
+  const float pixelFootprint = opt_.radiusPixels * 2.f * cam.tanHalfFovY / float(H);  // world radius per unit distance
   // Independent random streams per pass: the same step never reuses primal numbers for derivatives.
   const uint64_t passSeed = mix64(req.seed * 2 + uint64_t(pass) + 0x51ed27u);
   constexpr int kTile = 16;
@@ -224,7 +225,9 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
               } else {
                 DirectPath p;
                 Reservoir r;
-                if (sampleDirectRestir(scene_, sp, sampler, opt_.restir, prev, &ctx, p, r, &counters)) cs.add(p);
+                RestirSettings settings = opt_.restir;
+                settings.radius = pixelFootprint * hit.t;
+                if (sampleDirectRestir(scene_, sp, sampler, settings, prev, &ctx, p, r, &counters)) cs.add(p);
                 cs.hasReservoir = true;
                 cs.reservoir.r = r;
                 cs.reservoir.mesh = hit.mesh;
@@ -233,6 +236,8 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 cs.reservoir.b2 = hit.b2;
                 cs.reservoir.woWorld = -d;
                 cs.reservoir.view = uint32_t(view);
+                cs.reservoir.p = hit.p;
+                cs.reservoir.n = hit.ns;
               }
             }
             if (store) {
@@ -327,8 +332,9 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
 
   auto t0 = std::chrono::steady_clock::now();
   if (restir) {
-    session.primal.refresh(scene_);
-    if (restirDerivative) session.derivative.refresh(scene_);
+    // The two chains are independent: build their kd-trees side by side.
+    tbb::parallel_invoke([&] { session.primal.refresh(scene_); },
+                         [&] { if (restirDerivative) session.derivative.refresh(scene_); });
   }
   st.secondsReservoirUpdate += secondsSince(t0);
 
@@ -379,8 +385,12 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
     next.reserve(fresh.size());
     for (auto& r : fresh)
       if (r.mesh != UINT32_MAX) next.push_back(r);
-    if (opt_.preserveOccluded) {
-      for (auto& r : chain.items) {
+    // Alg. 8: keep old reservoirs that no view of this batch can see. When the batch holds every
+    // view and the geometry never moved, each old reservoir was seen by one of these views and is
+    // visible still, so none would be kept: skip the visibility rays.
+    bool allViews = req.views.size() == scene_.cameras.size() && scene_.geometryVersion() == 0;
+    if (opt_.preserveOccluded && !allViews) {
+      for (const auto& r : chain.items()) {
         bool seen = false;
         for (int v : req.views)
           if (visibleFromCamera(scene_, scene_.cameras[size_t(v)], r.p, r.n)) { seen = true; break; }
@@ -390,12 +400,13 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
         }
       }
     }
-    chain.items = std::move(next);
+    // Fresh items carry their hit's position; kept ones were re-placed by this step's refresh().
+    chain.assignPlaced(std::move(next), scene_.geometryVersion());
   };
   if (restir) rebuild(session.primal, newPrimal);
   if (restirDerivative) rebuild(session.derivative, newDerivative);
   st.secondsReservoirUpdate += secondsSince(t0);
-  st.reservoirs = session.primal.items.size() + session.derivative.items.size();
+  st.reservoirs = session.primal.size() + session.derivative.size();
   if (counters.shadingPoints) {
     st.meanNeighbours = double(counters.neighboursUsed) / double(counters.shadingPoints);
     st.meanM = counters.sumM / double(counters.shadingPoints);

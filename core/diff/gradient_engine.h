@@ -27,7 +27,9 @@ const char* gradientMethodName(GradientMethod m);
 struct GradientOptions {
   GradientMethod method = GradientMethod::Restir;
   RestirSettings restir;      // candidates and visibility also apply to ris
-  float radiusFraction = 0.05f;  // neighbour search radius as a fraction of the scene's bounding radius
+  // Neighbour search radius in pixels: at a shading point at distance t the world radius is
+  // radiusPixels * t * 2 tan(fov/2) / height, so reuse stays local whatever the scene's scale.
+  float radiusPixels = 3.f;
   bool forwardOnly = false;   // restir in the primal pass only
   bool preserveOccluded = true;  // keep reservoirs no view of the batch sees (Alg. 8)
   int sppPrimal = 1;

@@ -46,7 +46,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   c.M = fresh.M;
   c.stream(fresh.y, fresh.W > 0.f ? fresh.wSum : 0.0, fresh.targetY, sampler.next1D());
   for (int i = 0; i < k; ++i) {
-    const StoredReservoir& q = prev->items[nb[i]];
+    const StoredReservoir& q = prev->items()[nb[i]];
     float u = sampler.next1D();
     nbM[i] = std::min(q.r.M, s.mCap);
     c.M += nbM[i];
@@ -64,7 +64,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   if (c.targetY > 0.f) {
     Z = fresh.M;  // fresh candidates come from light sampling here: they cover every y with target > 0
     for (int i = 0; i < k; ++i)
-      if (targetAt(scene, prev->items[nb[i]], c.y, s.visibilityInTarget, ctx) > 0.f) Z += nbM[i];
+      if (targetAt(scene, prev->items()[nb[i]], c.y, s.visibilityInTarget, ctx) > 0.f) Z += nbM[i];
   }
   c.finalize(Z);
   combined = c;

@@ -10,10 +10,10 @@ namespace invr {
 struct RestirSettings {
   int candidates = 8;             // M of the fresh streaming RIS
   bool visibilityInTarget = true; // Eq. 14 (with V) or Eq. 17 (without)
-  int neighbours = 4;             // reservoirs reused from the previous step
+  int neighbours = 1;             // reservoirs reused from the previous step
   float radius = 0.05f;           // search radius (world units; the engine sets it from radiusFraction)
   float normalDot = 0.9f;         // reject neighbours whose normal differs more
-  float mCap = 160.f;             // confidence cap on each reused reservoir (20 x M by default)
+  float mCap = 16.f;              // confidence cap on each reused reservoir (2 x M by default)
 };
 
 struct RestirCounters {

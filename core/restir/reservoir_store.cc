@@ -29,22 +29,40 @@ struct ReservoirStore::Index {
 
 ReservoirStore::ReservoirStore() = default;
 ReservoirStore::~ReservoirStore() = default;
-ReservoirStore::ReservoirStore(ReservoirStore&& o) noexcept : items(std::move(o.items)) { o.index_.reset(); }
+ReservoirStore::ReservoirStore(ReservoirStore&& o) noexcept : items_(std::move(o.items_)), placedVersion_(o.placedVersion_) {
+  o.index_.reset();
+}
 ReservoirStore& ReservoirStore::operator=(ReservoirStore&& o) noexcept {
-  items = std::move(o.items);
+  items_ = std::move(o.items_);
+  placedVersion_ = o.placedVersion_;
   index_.reset();
   o.index_.reset();
   return *this;
 }
 
+void ReservoirStore::assign(std::vector<StoredReservoir> items) {
+  items_ = std::move(items);
+  placedVersion_ = UINT64_MAX;
+  index_.reset();
+}
+
+void ReservoirStore::assignPlaced(std::vector<StoredReservoir> items, uint64_t geometryVersion) {
+  items_ = std::move(items);
+  placedVersion_ = geometryVersion;
+  index_.reset();
+}
+
 void ReservoirStore::refresh(const Scene& scene) {
-  for (auto& s : items) {
-    SurfaceHit h = scene.surfaceAt(s.mesh, s.tri, s.b1, s.b2);
-    s.p = h.p;
-    s.n = h.ns;
+  if (placedVersion_ != scene.geometryVersion()) {
+    for (auto& s : items_) {
+      SurfaceHit h = scene.surfaceAt(s.mesh, s.tri, s.b1, s.b2);
+      s.p = h.p;
+      s.n = h.ns;
+    }
+    placedVersion_ = scene.geometryVersion();
   }
   index_.reset();
-  if (!items.empty()) index_ = std::make_unique<Index>(&items);
+  if (!items_.empty()) index_ = std::make_unique<Index>(&items_);
 }
 
 int ReservoirStore::neighbours(Vec3 p, Vec3 n, int k, float radius, float normalDot, uint32_t* out) const {
@@ -59,7 +77,7 @@ int ReservoirStore::neighbours(Vec3 p, Vec3 n, int k, float radius, float normal
   int count = 0;
   for (size_t i = 0; i < found && count < k; ++i) {
     if (d2[i] > radius * radius) break;  // sorted by distance
-    if (dot(items[idx[i]].n, n) < normalDot) continue;
+    if (dot(items_[idx[i]].n, n) < normalDot) continue;
     out[count++] = idx[i];
   }
   return count;

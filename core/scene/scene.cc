@@ -58,6 +58,7 @@ void Scene::updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions) {
   meshes[mesh].positions = std::move(positions);
   computeFaceNormals(mesh);
   accel.updatePositions(mesh, meshes[mesh].positions);
+  ++geometryVersion_;
 }
 
 bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {

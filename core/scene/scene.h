@@ -55,6 +55,9 @@ class Scene {
   // Light areas are recomputed by calling finalize() when an emitter moves.
   void updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions);
 
+  // Incremented whenever vertices move, so caches of surface positions know to re-place.
+  uint64_t geometryVersion() const { return geometryVersion_; }
+
   // Unit geometric normal of a triangle (from its winding), precomputed: cheaper than a cross
   // product and a square root on every hit.
   Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return faceNormals_[mesh][tri]; }
@@ -89,6 +92,7 @@ class Scene {
   Distribution1D lightSelect_;
   std::vector<uint32_t> infiniteLights_;
   std::vector<std::vector<Vec3>> faceNormals_;
+  uint64_t geometryVersion_ = 0;
 };
 
 }  // namespace invr

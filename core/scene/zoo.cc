@@ -125,7 +125,7 @@ v1::Scene oxalis() {
   m.s.set_name("oxalis");
   m.diffuse("wall", 0.6, 0.58, 0.55);
   m.diffuse("floor", 0.35, 0.3, 0.25);
-  m.diffuseTexture("painting", "painting", 128, 11, 0.15, 0.4, 0.15, 0.75, 0.65, 0.45);
+  m.diffuseTexture("painting", "painting", 64, 11, 0.15, 0.4, 0.15, 0.75, 0.65, 0.45);
   m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
   m.quad("wall", "wall", {3, 2, 1}, kFacePosZ, {0, 2, -0.01});
   m.quad("painting", "painting", {0.6, 0.45, 1}, kFacePosZ, {0, 1.3, 0});
@@ -145,7 +145,7 @@ v1::Scene ajar() {
   m.diffuse("floor", 0.45, 0.35, 0.25);
   m.diffuse("door", 0.5, 0.35, 0.2);
   m.diffuse("emitter", 0.8, 0.8, 0.8);
-  m.diffuseTexture("painting", "painting", 128, 5, 0.2, 0.45, 0.2, 0.8, 0.7, 0.5);
+  m.diffuseTexture("painting", "painting", 64, 5, 0.2, 0.45, 0.2, 0.8, 0.7, 0.5);
   // Main room x in [-2, 2], y in [0, 2.5], z in [-2, 2]; the door is in the wall x = 2.
   m.quad("floor", "floor", {2, 2, 1}, kFaceUp, {0, 0, 0});
   m.quad("ceiling", "wall", {2, 2, 1}, kFaceDown, {0, 2.5, 0});
@@ -290,7 +290,7 @@ v1::Scene spot() {
   SceneMaker m;
   m.s.set_name("spot");
   m.diffuse("floor", 0.5, 0.5, 0.5);
-  m.diffuseTexture("object", "painting", 128, 21, 0.2, 0.5, 0.2, 0.8, 0.7, 0.5);
+  m.diffuseTexture("object", "painting", 64, 21, 0.2, 0.5, 0.2, 0.8, 0.7, 0.5);
   m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
   auto* o = m.shape("object", "object");
   o->mutable_sphere();

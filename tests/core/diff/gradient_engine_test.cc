@@ -157,8 +157,8 @@ TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {
   EXPECT_EQ(first.stats.meanNeighbours, 0.0);  // nothing to reuse yet
   r.step = 1;
   auto second = engine.evaluate(f.theta, r, s);
-  EXPECT_GT(second.stats.meanNeighbours, 1.0);
-  EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 2);
+  EXPECT_GT(second.stats.meanNeighbours, 0.9 * o.restir.neighbours);  // almost every point finds one
+  EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 1.5);    // and carries its confidence
   EXPECT_GT(second.stats.reservoirs, 0u);
 }
 

@@ -78,7 +78,7 @@ void runChains(float mCap, const char* label) {
       next.b1 = toy.hit.b1;
       next.b2 = toy.hit.b2;
       next.woWorld = Vec3(0, 1, 0);
-      store.items = {next};
+      store.assign({next});
       if (t == steps - 1) meanM += combined.M / chains;
     }
   }
@@ -113,7 +113,7 @@ TEST(Restir, WeightIsZeroWhenTargetIsZero) {
   good.r.W = 1.f;
   good.r.targetY = 1.f;
   good.r.y.light = 1;
-  store.items = {good};
+  store.assign({good});
   store.refresh(*toy.scene);
   RestirSettings s;
   s.normalDot = -1.f;  // accept it despite the flipped side
@@ -144,9 +144,9 @@ TEST(Restir, ReservoirsFollowTheSurfaceWhenTheMeshMoves) {
   r.r.y.tri = 1;
   r.r.y.b1 = 0.25f;
   r.r.y.b2 = 0.25f;
-  store.items = {r};
+  store.assign({r});
   store.refresh(*toy.scene);
-  Vec3 before = store.items[0].p;
+  Vec3 before = store.items()[0].p;
   LightSample lsBefore = evalLightSample(*toy.scene, r.r.y, before);
 
   // Lift the plane by 0.3 and move the lamp sideways by 0.2.
@@ -159,7 +159,7 @@ TEST(Restir, ReservoirsFollowTheSurfaceWhenTheMeshMoves) {
   toy.scene->updateMeshPositions(lamp, lampPos);
   store.refresh(*toy.scene);
 
-  Vec3 after = store.items[0].p;
+  Vec3 after = store.items()[0].p;
   EXPECT_NEAR(after.y - before.y, 0.3f, 1e-5f);
   EXPECT_NEAR(after.x, before.x, 1e-5f);
   LightSample lsAfter = evalLightSample(*toy.scene, r.r.y, after);

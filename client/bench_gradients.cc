@@ -1,0 +1,309 @@
+// Benchmarks of the gradient estimators (Wang et al. 2023): equal-time gradient error, ReSTIR's
+// overhead at equal samples, and equal-time reconstruction. Each prints a table or --json.
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "client/bench_report.h"
+#include "client/commands.h"
+#include "core/diff/problem.h"
+#include "core/diff/zoo_jobs.h"
+#include "core/error.h"
+
+namespace invr::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+const GradientMethod kMethods[] = {GradientMethod::Pt, GradientMethod::Ris, GradientMethod::Restir};
+
+struct Setup {
+  Problem problem;
+  std::vector<Image> targets;
+};
+
+Setup makeSetup(const std::string& scene, int targetSpp) {
+  auto job = zooJob(scene);
+  job.mutable_optimization()->set_target_spp(targetSpp);
+  Setup s{buildProblem(job), {}};
+  s.targets = renderTargets(s.problem);
+  return s;
+}
+
+GradientOptions optionsFor(const Problem& p, GradientMethod m, int spp) {
+  GradientOptions o = p.gradient;
+  o.method = m;
+  o.sppPrimal = spp;
+  o.sppGradient = spp;
+  return o;
+}
+
+// Seconds per gradient step for method m at spp (median of 3 after one warm-up step).
+double stepSeconds(Setup& s, GradientMethod m, int spp, int burnIn) {
+  GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, m, spp));
+  EngineSession session;
+  GradientRequest r;
+  r.views = viewsForStep(s.problem, 0);
+  for (int b = 0; b < burnIn; ++b) {
+    GradientRequest rb = r;
+    rb.renderOnly = true;
+    rb.step = uint64_t(b);
+    engine.evaluate(s.problem.initial, rb, session);
+  }
+  std::vector<double> t;
+  for (int i = 0; i < 4; ++i) {
+    r.step = uint64_t(burnIn + i);
+    auto t0 = Clock::now();
+    engine.evaluate(s.problem.initial, r, session);
+    if (i > 0) t.push_back(since(t0));
+  }
+  std::sort(t.begin(), t.end());
+  return t[1];
+}
+
+double relativeSquaredError(const std::vector<double>& g, const std::vector<double>& ref) {
+  double num = 0, den = 0;
+  for (size_t i = 0; i < g.size(); ++i) {
+    num += (g[i] - ref[i]) * (g[i] - ref[i]);
+    den += ref[i] * ref[i];
+  }
+  return num / den;
+}
+
+struct GradientsArgs {
+  std::string scene = "ajar";
+  int reps = 6, burnIn = 16, refEvaluations = 32, refSpp = 8;
+  bool json = false;
+};
+
+void runBenchGradients(const GradientsArgs& a) {
+  Setup s = makeSetup(a.scene, 256);
+  const auto views = viewsForStep(s.problem, 0);
+  // Reference: a long, independent ReSTIR chain at high spp (unbiased: see the FD tests), averaged
+  // in two halves. |A - B|^2 is about 4x the full reference's error, which we print as the noise
+  // floor that every measured relMSE includes.
+  std::vector<double> ref(s.problem.params.size(), 0.0), half(s.problem.params.size(), 0.0);
+  {
+    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets,
+                          optionsFor(s.problem, GradientMethod::Restir, a.refSpp));
+    EngineSession session;
+    GradientRequest r;
+    r.views = views;
+    r.seed = 900001;
+    for (int b = 0; b < a.burnIn; ++b) {
+      GradientRequest rb = r;
+      rb.renderOnly = true;
+      rb.step = uint64_t(b);
+      engine.evaluate(s.problem.initial, rb, session);
+    }
+    for (int i = 0; i < a.refEvaluations; ++i) {
+      r.step = uint64_t(a.burnIn + i);
+      auto g = engine.evaluate(s.problem.initial, r, session).gradient;
+      for (size_t k = 0; k < g.size(); ++k) {
+        ref[k] += g[k] / a.refEvaluations;
+        if (i < a.refEvaluations / 2) half[k] += g[k] / (a.refEvaluations / 2);
+      }
+    }
+  }
+  std::vector<double> otherHalf(ref.size());
+  for (size_t k = 0; k < ref.size(); ++k) otherHalf[k] = 2 * ref[k] - half[k];
+  const double floor = relativeSquaredError(half, otherHalf) / 4;
+  // Equal time per step: the budget is ReSTIR's step at 1 spp; PT and RIS get as many spp as fit.
+  double budget = stepSeconds(s, GradientMethod::Restir, 1, 2);
+  BenchReport rep("gradients");
+  rep.text("scene", a.scene);
+  rep.number("parameters", double(s.problem.params.size()));
+  rep.number("budget_seconds_per_step", budget, "s (ReSTIR at 1 spp)");
+  std::vector<double> relmse(3), seconds(3);
+  for (int mi = 0; mi < 3; ++mi) {
+    GradientMethod m = kMethods[mi];
+    int spp = 1;
+    if (m != GradientMethod::Restir) spp = std::max(1, int(std::lround(budget / stepSeconds(s, m, 1, 0))));
+    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, m, spp));
+    EngineSession session;
+    GradientRequest r;
+    r.views = views;
+    r.seed = 12345;
+    int burn = m == GradientMethod::Restir ? a.burnIn : 0;
+    for (int b = 0; b < burn; ++b) {
+      GradientRequest rb = r;
+      rb.renderOnly = true;
+      rb.step = uint64_t(b);
+      engine.evaluate(s.problem.initial, rb, session);
+    }
+    double err = 0, secs = 0;
+    for (int i = 0; i < a.reps; ++i) {
+      r.step = uint64_t(burn + i);
+      auto t0 = Clock::now();
+      auto g = engine.evaluate(s.problem.initial, r, session).gradient;
+      secs += since(t0);
+      err += relativeSquaredError(g, ref) / a.reps;
+    }
+    relmse[size_t(mi)] = err;
+    seconds[size_t(mi)] = secs / a.reps;
+    std::string name = gradientMethodName(m);
+    rep.number("spp_" + name, spp);
+    rep.number("seconds_per_step_" + name, secs / a.reps, "s");
+  }
+  rep.raw("relmse", "{\"pt\": " + BenchReport::fmt(relmse[0]) + ", \"ris\": " + BenchReport::fmt(relmse[1]) +
+                         ", \"restir\": " + BenchReport::fmt(relmse[2]) + "}",
+          "pt " + BenchReport::fmt(relmse[0]) + ", ris " + BenchReport::fmt(relmse[1]) + ", restir " + BenchReport::fmt(relmse[2]));
+  rep.number("reference_noise_floor", floor, "(relMSE the reference itself contributes; keep it well below restir's)");
+  rep.number("ratio_ris_over_restir", relmse[1] / relmse[2], "(target >= 10 on ajar or oxalis)");
+  rep.number("ratio_pt_over_restir", relmse[0] / relmse[2]);
+  // Step times match only to within one spp; relMSE x seconds compares work-normalised efficiency.
+  rep.number("efficiency_ratio_ris_over_restir", relmse[1] * seconds[1] / (relmse[2] * seconds[2]), "(relMSE x seconds)");
+  rep.number("efficiency_ratio_pt_over_restir", relmse[0] * seconds[0] / (relmse[2] * seconds[2]), "(relMSE x seconds)");
+  rep.print(a.json);
+}
+
+struct OverheadArgs {
+  std::string scene = "oxalis";
+  int steps = 6;
+  bool json = false;
+};
+
+void runBenchOverhead(const OverheadArgs& a) {
+  Setup s = makeSetup(a.scene, 64);
+  // Equal samples: the same M candidates and spp; ReSTIR adds the kd-tree build, neighbour search,
+  // combination and reservoir bookkeeping. Interleave the two to share the machine's noise.
+  GradientEngine ris(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, GradientMethod::Ris, 1));
+  GradientEngine restir(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, GradientMethod::Restir, 1));
+  EngineSession sRis, sRestir;
+  GradientRequest r;
+  r.views = viewsForStep(s.problem, 0);
+  for (int b = 0; b < 4; ++b) {
+    r.step = uint64_t(b);
+    r.renderOnly = true;
+    restir.evaluate(s.problem.initial, r, sRestir);
+  }
+  r.renderOnly = false;
+  std::vector<double> tRis, tRestir;
+  for (int i = 0; i < a.steps; ++i) {
+    r.step = uint64_t(4 + i);
+    auto t0 = Clock::now();
+    ris.evaluate(s.problem.initial, r, sRis);
+    tRis.push_back(since(t0));
+    t0 = Clock::now();
+    restir.evaluate(s.problem.initial, r, sRestir);
+    tRestir.push_back(since(t0));
+  }
+  std::sort(tRis.begin(), tRis.end());
+  std::sort(tRestir.begin(), tRestir.end());
+  double ris50 = tRis[tRis.size() / 2], restir50 = tRestir[tRestir.size() / 2];
+  BenchReport rep("overhead");
+  rep.text("scene", a.scene);
+  rep.number("ris_seconds_per_step", ris50, "s (median)");
+  rep.number("restir_seconds_per_step", restir50, "s (median)");
+  rep.number("restir_overhead_fraction", (restir50 - ris50) / restir50, "(target <= 0.20)");
+  rep.print(a.json);
+}
+
+struct ReconstructArgs {
+  std::string scene = "oxalis";
+  double seconds = 60;
+  std::string loss;        // override the scene job's loss
+  std::string optimizer;   // override the scene job's optimizer
+  double learningRate = 0; // override every parameter's learning rate
+  std::string csv = "reconstruct.csv";
+  bool json = false;
+};
+
+void runBenchReconstruct(const ReconstructArgs& a) {
+  if (!(a.seconds > 0)) throw InputError("--seconds must be positive");
+  auto job = zooJob(a.scene);
+  job.mutable_optimization()->set_target_spp(256);
+  if (!a.loss.empty()) job.mutable_optimization()->set_loss(a.loss);
+  if (!a.optimizer.empty()) job.mutable_optimization()->set_optimizer(a.optimizer);
+  if (a.learningRate > 0)
+    for (auto& p : *job.mutable_optimization()->mutable_parameters()) p.set_learning_rate(a.learningRate);
+  Setup s{buildProblem(job), {}};
+  s.targets = renderTargets(s.problem);
+  std::ofstream csv(a.csv);
+  if (!csv) throw InputError("--csv: cannot write '" + a.csv + "'");
+  csv << "method,step,seconds,loss,param_error\n";
+  BenchReport rep("reconstruct");
+  rep.text("scene", a.scene);
+  rep.number("seconds_per_method", a.seconds, "s");
+  std::vector<double> errors(3);
+  for (int mi = 0; mi < 3; ++mi) {
+    GradientMethod m = kMethods[mi];
+    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, m, 1));
+    EngineSession session;
+    std::vector<float> theta = s.problem.initial;
+    OptimizerState state;
+    auto t0 = Clock::now();
+    uint64_t step = 0;
+    std::string name = gradientMethodName(m);
+    csv << name << ",0,0," << "," << parameterError(s.problem, theta) << "\n";
+    // The burn-in counts against ReSTIR's time budget.
+    int burn = m == GradientMethod::Restir ? s.problem.burnIn : 0;
+    for (int b = 0; b < burn; ++b) {
+      GradientRequest rb;
+      rb.views = viewsForStep(s.problem, step);
+      rb.step = step++;
+      rb.seed = s.problem.seed;
+      rb.renderOnly = true;
+      engine.evaluate(theta, rb, session);
+    }
+    int steps = 0;
+    while (since(t0) < a.seconds) {
+      GradientRequest r;
+      r.views = viewsForStep(s.problem, step);
+      r.step = step++;
+      r.seed = s.problem.seed;
+      auto res = engine.evaluate(theta, r, session);
+      optimizerStep(s.problem.optimizer, s.problem.params, res.gradient, theta, state);
+      ++steps;
+      csv << name << "," << steps << "," << since(t0) << "," << res.stats.loss << "," << parameterError(s.problem, theta) << "\n";
+    }
+    errors[size_t(mi)] = parameterError(s.problem, theta);
+    rep.number("steps_" + name, steps);
+  }
+  rep.raw("param_error", "{\"pt\": " + BenchReport::fmt(errors[0]) + ", \"ris\": " + BenchReport::fmt(errors[1]) +
+                             ", \"restir\": " + BenchReport::fmt(errors[2]) + "}",
+          "pt " + BenchReport::fmt(errors[0]) + ", ris " + BenchReport::fmt(errors[1]) + ", restir " + BenchReport::fmt(errors[2]) +
+              " (RMSE of the parameters)");
+  rep.number("ratio_pt_over_restir", errors[0] / errors[2], "(target >= 3)");
+  rep.number("ratio_ris_over_restir", errors[1] / errors[2]);
+  rep.text("csv", a.csv);
+  rep.print(a.json);
+}
+
+}  // namespace
+
+void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
+  auto ga = std::make_shared<GradientsArgs>();
+  auto* g = bench.add_subcommand("gradients", "Equal-time gradient error (relative MSE vs a high-sample reference): PT, RIS, ReSTIR");
+  g->add_option("--scene", ga->scene, "zoo scene (ajar or oxalis)")->capture_default_str();
+  g->add_option("--reps", ga->reps, "gradient evaluations averaged per method")->capture_default_str();
+  g->add_option("--burn-in", ga->burnIn, "ReSTIR render-only steps before measuring")->capture_default_str();
+  g->add_option("--ref-evaluations", ga->refEvaluations, "reference: ReSTIR steps averaged (independent chain)")->capture_default_str();
+  g->add_option("--ref-spp", ga->refSpp, "reference: spp of each evaluation")->capture_default_str();
+  g->add_flag("--json", ga->json, "print one JSON object");
+  g->callback([ga, &exitCode] { runBenchGradients(*ga); exitCode = 0; });
+
+  auto oa = std::make_shared<OverheadArgs>();
+  auto* o = bench.add_subcommand("overhead", "ReSTIR's overhead over RIS at equal sample counts, as a fraction of step time");
+  o->add_option("--scene", oa->scene, "zoo scene")->capture_default_str();
+  o->add_option("--steps", oa->steps, "timed steps of each")->capture_default_str();
+  o->add_flag("--json", oa->json, "print one JSON object");
+  o->callback([oa, &exitCode] { runBenchOverhead(*oa); exitCode = 0; });
+
+  auto ra = std::make_shared<ReconstructArgs>();
+  auto* rc = bench.add_subcommand("reconstruct", "Equal-time reconstruction of the scene's parameters: PT, RIS, ReSTIR");
+  rc->add_option("--scene", ra->scene, "zoo scene")->capture_default_str();
+  rc->add_option("--seconds", ra->seconds, "wall time per method")->capture_default_str();
+  rc->add_option("--loss", ra->loss, "override the loss (l2, relative_l2, l1)");
+  rc->add_option("--lr", ra->learningRate, "override every parameter's learning rate");
+  rc->add_option("--optimizer", ra->optimizer, "override the optimizer (adam, sgd)");
+  rc->add_option("--csv", ra->csv, "convergence data (method, step, seconds, loss, param_error)")->capture_default_str();
+  rc->add_flag("--json", ra->json, "print one JSON object");
+  rc->callback([ra, &exitCode] { runBenchReconstruct(*ra); exitCode = 0; });
+}
+
+}  // namespace invr::cli
