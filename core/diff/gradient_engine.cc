@@ -64,13 +64,12 @@ DirectPath emissionPath(Rgb weight, Rgb emission, const LightSampleRef& ref, flo
 }
 
 // Emission reached by ray (o, d): an environment on a miss, a front-facing area light on a hit.
-// Returns false if nothing emits there. hitOut receives the surface hit (if any).
-bool emissionAlong(const Scene& scene, Vec3 o, Vec3 d, Rgb weight, CameraSample& cs, SurfaceHit* hitOut, bool* hitAny,
-                   float misPdfBsdf, bool useMis) {
+// With MIS, `from` is the shading point the ray left (the NEE half computes its pdf from there
+// too, so the two weights sum to one) and misPdfBsdf the direction's BSDF pdf.
+bool emissionAlong(const Scene& scene, Vec3 o, Vec3 d, Rgb weight, CameraSample& cs, bool useMis = false,
+                   Vec3 from = Vec3(0.f), float misPdfBsdf = 0.f) {
   SurfaceHit h;
   bool any = scene.intersect(o, d, h);
-  if (hitAny) *hitAny = any;
-  if (hitOut) *hitOut = h;
   const auto& sel = scene.lightSelection();
   if (!any) {
     bool added = false;
@@ -92,7 +91,7 @@ bool emissionAlong(const Scene& scene, Vec3 o, Vec3 d, Rgb weight, CameraSample&
   const Light& l = scene.lights[size_t(li)];
   Rgb Le = areaEmission(l, h.ng, -d);
   if (isBlack(Le)) return false;
-  float w = useMis ? powerHeuristic(misPdfBsdf, sel.pmf(size_t(li)) * areaLightPdf(l, o, h.p, h.ng)) : 1.f;
+  float w = useMis ? powerHeuristic(misPdfBsdf, sel.pmf(size_t(li)) * areaLightPdf(l, from, h.p, h.ng)) : 1.f;
   LightSampleRef ref;
   ref.light = uint32_t(li);
   ref.tri = h.tri;
@@ -171,7 +170,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
             ++rays.camera;
             SurfaceHit& hit = cs.surface;
             if (!scene_.intersect(cam.eye, d, hit)) {
-              emissionAlong(scene_, cam.eye, d, Rgb(1.f), cs, nullptr, nullptr, 0.f, false);
+              emissionAlong(scene_, cam.eye, d, Rgb(1.f), cs);
             } else {
               cs.hit = true;
               if (int li = scene_.meshLight[hit.mesh]; li >= 0) {
@@ -196,7 +195,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 if (bs) {
                   Vec3 wi = sp.frame.toWorld(bs->wi);
                   ++rays.bounce;
-                  emissionAlong(scene_, offsetOrigin(hit.p, hit.ng, wi), wi, bs->weight, cs, nullptr, nullptr, 0.f, false);
+                  emissionAlong(scene_, offsetOrigin(hit.p, hit.ng, wi), wi, bs->weight, cs);
                 }
               } else if (opt_.method == GradientMethod::Pt) {
                 DirectPath p;
@@ -209,8 +208,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                     ++rays.bounce;
                     int before = cs.count;
                     Rgb f = cs.bsdf.eval(sp.wo, bs->wi);
-                    if (emissionAlong(scene_, offsetOrigin(hit.p, hit.ng, wi), wi, Rgb(1.f / bs->pdf), cs, nullptr, nullptr,
-                                      bs->pdf, true)) {
+                    if (emissionAlong(scene_, offsetOrigin(hit.p, hit.ng, wi), wi, Rgb(1.f / bs->pdf), cs, true, hit.p, bs->pdf)) {
                       for (int i = before; i < cs.count; ++i) {
                         cs.paths[i].throughBsdf = true;
                         cs.paths[i].bsdfValue = f;
