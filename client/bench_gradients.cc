@@ -79,6 +79,7 @@ struct GradientsArgs {
   int reps = 6, burnIn = 16, refEvaluations = 32, refSpp = 8;
   int neighbours = 0;  // 0: the job's default
   double mCap = 0;
+  double radiusPixels = 0;
   bool json = false;
 };
 
@@ -86,6 +87,7 @@ void runBenchGradients(const GradientsArgs& a) {
   Setup s = makeSetup(a.scene, 256);
   if (a.neighbours > 0) s.problem.gradient.restir.neighbours = a.neighbours;
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
+  if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
   const auto views = viewsForStep(s.problem, 0);
   // Reference: a long, independent ReSTIR chain at high spp (unbiased: see the FD tests), averaged
   // in two halves. |A - B|^2 is about 4x the full reference's error, which we print as the noise
@@ -123,6 +125,7 @@ void runBenchGradients(const GradientsArgs& a) {
   rep.number("parameters", double(s.problem.params.size()));
   rep.number("restir_neighbours", s.problem.gradient.restir.neighbours);
   rep.number("restir_m_cap", s.problem.gradient.restir.mCap);
+  rep.number("restir_radius_pixels", s.problem.gradient.radiusPixels);
   rep.number("budget_seconds_per_step", budget, "s (ReSTIR at 1 spp)");
   std::vector<double> relmse(3), seconds(3);
   for (int mi = 0; mi < 3; ++mi) {
@@ -292,6 +295,7 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   g->add_option("--ref-spp", ga->refSpp, "reference: spp of each evaluation")->capture_default_str();
   g->add_option("--neighbours", ga->neighbours, "ReSTIR neighbours (default: the scene job's)");
   g->add_option("--m-cap", ga->mCap, "ReSTIR confidence cap (default: the scene job's, 2 x M)");
+  g->add_option("--radius-pixels", ga->radiusPixels, "ReSTIR neighbour radius in pixel footprints (default: the job's)");
   g->add_flag("--json", ga->json, "print one JSON object");
   g->callback([ga, &exitCode] { runBenchGradients(*ga); exitCode = 0; });
 
