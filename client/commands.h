@@ -9,5 +9,6 @@ void addRenderCommand(CLI::App& app, int& exitCode);
 void addZooCommand(CLI::App& app, int& exitCode);
 void addBenchCommand(CLI::App& app, int& exitCode);
 void addBenchGradientCommands(CLI::App& bench, int& exitCode);
+void addOptimizeCommands(CLI::App& app, int& exitCode);
 
 }  // namespace invr::cli

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   invr::cli::addRenderCommand(app, exitCode);
   invr::cli::addZooCommand(app, exitCode);
   invr::cli::addBenchCommand(app, exitCode);
+  invr::cli::addOptimizeCommands(app, exitCode);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

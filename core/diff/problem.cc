@@ -98,12 +98,12 @@ std::vector<Image> renderTargets(Problem& p) {
   p.params.write(p.truth, *p.scene);
   std::vector<Image> targets;
   // Targets set the floor of every reconstruction (the optimum fits their noise), so use the
-  // lowest-variance estimator we have: visibility-aware RIS with many candidates.
+  // lowest-variance estimator we have: visibility-aware RIS with 16 candidates.
   RenderOptions ro;
   ro.spp = p.targetSpp;
   ro.maxDepth = 1;
   ro.estimator = LightEstimator::Ris;
-  ro.risCandidates = 32;
+  ro.risCandidates = 16;
   ro.risVisibilityInTarget = true;
   ro.seed = mix64(p.seed ^ 0x7a26e7u);
   for (size_t v = 0; v < p.scene->cameras.size(); ++v) targets.push_back(renderView(*p.scene, int(v), ro).image);

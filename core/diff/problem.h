@@ -27,7 +27,7 @@ struct Problem {
 Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets = {});
 
 // Ground-truth targets: the truth rendered with the forward renderer (direct illumination,
-// visibility-aware RIS with 32 candidates, target_spp samples per pixel).
+// visibility-aware RIS with 16 candidates, target_spp samples per pixel).
 std::vector<Image> renderTargets(Problem& problem);
 
 // Root-mean-square difference between theta and the truth.

@@ -1,0 +1,127 @@
+// invr optimize: run an inverse problem in this process (no server) and write its results.
+// invr example: print a zoo scene's built-in job as JSON, for a user to edit.
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "client/commands.h"
+#include "client/progress.h"
+#include "core/diff/zoo_jobs.h"
+#include "core/error.h"
+#include "core/io/job_io.h"
+#include "core/optim/local_run.h"
+#include "core/render/renderer.h"
+
+namespace invr::cli {
+
+namespace {
+
+struct OptimizeArgs {
+  std::string job;
+  std::string out = "out/optimize";
+  int steps = 0;
+  std::string method;
+};
+
+invr::v1::JobSpec loadJobArg(const std::string& arg, AssetResolver& assets) {
+  if (arg.size() > 5 && arg.substr(arg.size() - 5) == ".json") {
+    std::filesystem::path p(arg);
+    if (!std::filesystem::exists(p)) throw InputError("job file '" + arg + "': not found");
+    assets.baseDir = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
+    auto job = loadJobFile(p);
+    if (!job.has_optimization()) throw InputError("job file '" + arg + "': has no 'optimization' (see `invr example cornell`)");
+    return job;
+  }
+  return zooJob(arg);
+}
+
+void writeParameters(const std::filesystem::path& dir, const Problem& p, const std::vector<float>& theta) {
+  // Scalars and colours as JSON; textures additionally as EXR images a person can look at.
+  std::ofstream js(dir / "parameters.json");
+  js << "{\n";
+  for (size_t i = 0; i < p.params.slots().size(); ++i) {
+    const ParameterSlot& s = p.params.slots()[i];
+    js << "  \"" << s.name << "\": ";
+    if (s.width > 0) {
+      std::string file = s.name;
+      std::replace(file.begin(), file.end(), '/', '_');
+      file += ".exr";
+      Image im(s.width, s.height, 3);
+      for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x)
+          for (int c = 0; c < 3; ++c) im.at(x, y, c) = theta[s.offset + size_t((y * s.width + x) * s.channels + std::min(c, s.channels - 1))];
+      writeImage(dir / file, im);
+      js << "{\"texture\": \"" << file << "\", \"width\": " << s.width << ", \"height\": " << s.height << "}";
+    } else {
+      js << "[";
+      for (uint32_t k = 0; k < s.size; ++k) js << (k ? ", " : "") << theta[s.offset + k];
+      js << "]";
+    }
+    js << (i + 1 < p.params.slots().size() ? ",\n" : "\n");
+  }
+  js << "}\n";
+}
+
+void runOptimize(const OptimizeArgs& a) {
+  AssetResolver assets;
+  auto job = loadJobArg(a.job, assets);
+  if (a.steps < 0) throw InputError("--steps: must be positive (got " + std::to_string(a.steps) + ")");
+  if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
+  if (a.method == "pt") job.mutable_optimization()->set_method(invr::v1::METHOD_PT);
+  else if (a.method == "ris") job.mutable_optimization()->set_method(invr::v1::METHOD_RIS);
+  else if (a.method == "restir") job.mutable_optimization()->set_method(invr::v1::METHOD_RESTIR);
+  Problem problem = buildProblem(job, assets);
+  std::filesystem::path dir(a.out);
+  std::filesystem::create_directories(dir);
+  std::ofstream csv(dir / "convergence.csv");
+  if (!csv) throw InputError("-o: cannot write to '" + a.out + "'");
+  csv << "method,step,seconds,loss,param_error\n";
+  const char* method = gradientMethodName(problem.gradient.method);
+  std::cout << "optimizing " << (job.name().empty() ? a.job : job.name()) << ": " << problem.params.size() << " parameter values, "
+            << problem.steps << " steps, method " << method << ", " << problem.scene->cameras.size() << " views\n"
+            << "rendering targets (" << problem.targetSpp << " spp)...\n" << std::flush;
+  ProgressBar bar("optimize");
+  bool tty = isatty(fileno(stdout)) != 0;
+  auto result = runLocally(problem, [&](const StepReport& r) {
+    csv << method << "," << r.step << "," << r.seconds << "," << r.loss << "," << r.parameterError << "\n";
+    bar.update(double(r.step) / problem.steps);
+    if (!tty && (r.step % 10 == 0 || int(r.step) == problem.steps))
+      std::cout << "step " << r.step << "/" << problem.steps << "  loss " << r.loss << "  param_error " << r.parameterError
+                << "  " << r.seconds << " s\n" << std::flush;
+  });
+  bar.finish();
+  writeParameters(dir, problem, result.theta);
+  RenderOptions ro;
+  ro.spp = 64;
+  for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {
+    writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
+    writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);
+  }
+  const StepReport& last = result.history.back();
+  std::cout << "done: parameter error " << parameterError(problem, problem.initial) << " -> " << last.parameterError << ", loss "
+            << result.history.front().loss << " -> " << last.loss << " in " << last.seconds << " s\n"
+            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv, parameters.json, final/target renders)\n";
+}
+
+}  // namespace
+
+void addOptimizeCommands(CLI::App& app, int& exitCode) {
+  auto args = std::make_shared<OptimizeArgs>();
+  auto* cmd = app.add_subcommand("optimize", "Run an inverse problem in this process (a zoo scene's built-in job or a job file)");
+  cmd->add_option("job", args->job, "zoo scene name or job file (.json with an 'optimization')")->required();
+  cmd->add_option("-o,--out", args->out, "output folder")->capture_default_str();
+  cmd->add_option("--steps", args->steps, "override the number of steps");
+  cmd->add_option("--method", args->method, "override the method")->check(CLI::IsMember({"pt", "ris", "restir"}));
+  cmd->callback([args, &exitCode] { runOptimize(*args); exitCode = 0; });
+
+  auto name = std::make_shared<std::string>();
+  auto* ex = app.add_subcommand("example", "Print a zoo scene's built-in job as JSON (edit it, then `invr optimize FILE.json`)");
+  ex->add_option("scene", *name, "zoo scene name")->required();
+  ex->callback([name, &exitCode] {
+    std::cout << jobToJson(zooJob(*name)) << "\n";
+    exitCode = 0;
+  });
+}
+
+}  // namespace invr::cli

@@ -1,0 +1,34 @@
+// Runs an inverse problem in this process: burn-in, then gradient steps with the optimiser, with a
+// callback per step. The service runs the same steps with the gradient farmed out to workers;
+// this is also the reference it is compared against.
+#pragma once
+
+#include <functional>
+
+#include "core/diff/problem.h"
+
+namespace invr {
+
+struct StepReport {
+  uint64_t step = 0;       // 1-based gradient step
+  double seconds = 0;      // since the run started (burn-in included)
+  double loss = 0;
+  double parameterError = 0;
+  uint64_t nonFinite = 0;
+  GradientStats stats;
+};
+
+struct LocalRunResult {
+  std::vector<float> theta;
+  std::vector<StepReport> history;
+  std::vector<Image> targets;
+};
+
+// A parameter beyond this magnitude means the optimisation diverged.
+inline constexpr float kDivergenceLimit = 1e30f;
+
+// Throws InputError if the loss becomes non-finite or a parameter non-finite or beyond
+// kDivergenceLimit (divergence), naming the step and the parameter.
+LocalRunResult runLocally(Problem& problem, const std::function<void(const StepReport&)>& onStep = {});
+
+}  // namespace invr
