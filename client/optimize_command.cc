@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "client/commands.h"
+#include "client/job_argument.h"
 #include "client/progress.h"
 #include "core/diff/zoo_jobs.h"
 #include "core/error.h"
@@ -23,18 +24,6 @@ struct OptimizeArgs {
   int steps = 0;
   std::string method;
 };
-
-invr::v1::JobSpec loadJobArg(const std::string& arg, AssetResolver& assets) {
-  if (arg.size() > 5 && arg.substr(arg.size() - 5) == ".json") {
-    std::filesystem::path p(arg);
-    if (!std::filesystem::exists(p)) throw InputError("job file '" + arg + "': not found");
-    assets.baseDir = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
-    auto job = loadJobFile(p);
-    if (!job.has_optimization()) throw InputError("job file '" + arg + "': has no 'optimization' (see `invr example cornell`)");
-    return job;
-  }
-  return zooJob(arg);
-}
 
 void writeParameters(const std::filesystem::path& dir, const Problem& p, const std::vector<float>& theta) {
   // Scalars and colours as JSON; textures additionally as EXR images a person can look at.
@@ -65,7 +54,9 @@ void writeParameters(const std::filesystem::path& dir, const Problem& p, const s
 
 void runOptimize(const OptimizeArgs& a) {
   AssetResolver assets;
-  auto job = loadJobArg(a.job, assets);
+  auto job = jobFromArgument(a.job, assets);
+  if (isJobFile(a.job) && !job.has_optimization())
+    throw InputError("job file '" + a.job + "': has no 'optimization' (see `invr example cornell`)");
   if (a.steps < 0) throw InputError("--steps: must be positive (got " + std::to_string(a.steps) + ")");
   if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
   if (a.method == "pt") job.mutable_optimization()->set_method(invr::v1::METHOD_PT);

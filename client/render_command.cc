@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "client/commands.h"
+#include "client/job_argument.h"
 #include "client/progress.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
@@ -29,25 +30,11 @@ struct RenderArgs {
   bool aovs = false;
 };
 
-// A scene argument is a zoo name unless it names a .json file (a JobSpec).
-invr::v1::JobSpec jobFromArg(const std::string& arg, AssetResolver& assets) {
-  if (arg.size() > 5 && arg.substr(arg.size() - 5) == ".json") {
-    std::filesystem::path p(arg);
-    if (!std::filesystem::exists(p)) throw InputError("job file '" + arg + "': not found");
-    assets.baseDir = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
-    return loadJobFile(p);
-  }
-  invr::v1::JobSpec job;
-  job.set_zoo(arg);
-  zooScene(arg);  // fails early with the list of known names
-  return job;
-}
-
 void runRender(const RenderArgs& a) {
   std::unique_ptr<tbb::global_control> threads;
   if (a.threads > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
   AssetResolver assets;
-  invr::v1::JobSpec job = jobFromArg(a.scene, assets);
+  invr::v1::JobSpec job = jobFromArgument(a.scene, assets);
   auto* r = job.mutable_render();
   if (a.spp != 0) r->set_spp(a.spp);
   if (a.maxDepth != 0) r->set_max_depth(a.maxDepth);
