@@ -7,6 +7,7 @@ namespace {
 // Target of light sample y at a stored reservoir's shading point, in the current scene (the
 // support test of Alg. 3, line 9). Uses that point's own view direction.
 float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRef& y, bool visibility, PathContext* ctx) {
+  // visibility = false skips the shadow ray (used when V is already known to be 1).
   SurfaceHit h = scene.surfaceAt(q.mesh, q.tri, q.b1, q.b2);
   Bsdf b = scene.materials[size_t(scene.meshMaterial[h.mesh])].at(h.uv);
   ShadingPoint sp{&h, &b, Frame(h.ns), Vec3(), q.woWorld};
@@ -44,6 +45,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
 
   Reservoir c;
   c.M = fresh.M;
+  int chosenFrom = -1;  // -1: the fresh reservoir; i: neighbour i
   c.stream(fresh.y, fresh.W > 0.f ? fresh.wSum : 0.0, fresh.targetY, sampler.next1D());
   for (int i = 0; i < k; ++i) {
     const StoredReservoir& q = prev->items()[nb[i]];
@@ -58,13 +60,20 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     if (c.stream(q.r.y, double(t) * double(q.r.W) * double(nbM[i]), t, u)) {
       chosen = ls;
       chosenF = f;
+      chosenFrom = i;
     }
   }
   float Z = 0.f;
   if (c.targetY > 0.f) {
     Z = fresh.M;  // fresh candidates come from light sampling here: they cover every y with target > 0
-    for (int i = 0; i < k; ++i)
-      if (targetAt(scene, prev->items()[nb[i]], c.y, s.visibilityInTarget, ctx) > 0.f) Z += nbM[i];
+    // A neighbour's own sample was visible from its shading point when it was resampled (its
+    // target, which includes V, was positive); with unmoved geometry it still is, so that one
+    // support test needs no shadow ray.
+    const bool staticGeometry = scene.geometryVersion() == 0;
+    for (int i = 0; i < k; ++i) {
+      bool needRay = s.visibilityInTarget && !(i == chosenFrom && staticGeometry);
+      if (targetAt(scene, prev->items()[nb[i]], c.y, needRay, ctx) > 0.f) Z += nbM[i];
+    }
   }
   c.finalize(Z);
   combined = c;
