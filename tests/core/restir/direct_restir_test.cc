@@ -23,6 +23,17 @@ constexpr const char* kToyScene = R"({
   "views": [{"eye": {"y": 5}, "target": {}, "up": {"z": -1}}]
 })";
 
+// A stored reservoir anchored at a surface hit.
+StoredReservoir anchoredAt(const SurfaceHit& h, Vec3 wo = Vec3(0, 1, 0)) {
+  StoredReservoir r;
+  r.mesh = h.mesh;
+  r.tri = h.tri;
+  r.b1 = h.b1;
+  r.b2 = h.b2;
+  r.woWorld = wo;
+  return r;
+}
+
 double squareFormFactor(double half, double h) {  // point below the centre of a 2half x 2half square
   double X = half / h, sx = std::sqrt(1 + X * X);
   return 4 * (2 * X / sx * std::atan(X / sx)) / (2 * M_PI);
@@ -71,13 +82,8 @@ void runChains(float mCap, const char* label) {
       ShadingPoint sp = toy.shading();
       double v = sampleDirectRestir(*toy.scene, sp, sampler, s, &store, nullptr, p, combined) ? p.contribution().x : 0.0;
       perStep[size_t(t)].add(v);
-      StoredReservoir next;
+      StoredReservoir next = anchoredAt(toy.hit);
       next.r = combined;
-      next.mesh = toy.hit.mesh;
-      next.tri = toy.hit.tri;
-      next.b1 = toy.hit.b1;
-      next.b2 = toy.hit.b2;
-      next.woWorld = Vec3(0, 1, 0);
       store.assign({next});
       if (t == steps - 1) meanM += combined.M / chains;
     }
@@ -103,12 +109,7 @@ TEST(Restir, WeightIsZeroWhenTargetIsZero) {
   sp.wo = sp.frame.toLocal(sp.woWorld);
   // A neighbour with a perfectly good sample from above.
   ReservoirStore store;
-  StoredReservoir good;
-  good.mesh = toy.hit.mesh;
-  good.tri = toy.hit.tri;
-  good.b1 = toy.hit.b1;
-  good.b2 = toy.hit.b2;
-  good.woWorld = Vec3(0, 1, 0);
+  StoredReservoir good = anchoredAt(toy.hit);
   good.r.M = 10;
   good.r.W = 1.f;
   good.r.targetY = 1.f;
@@ -135,11 +136,7 @@ TEST(Restir, WeightIsZeroWhenTargetIsZero) {
 TEST(Restir, ReservoirsFollowTheSurfaceWhenTheMeshMoves) {
   Toy toy;
   ReservoirStore store;
-  StoredReservoir r;
-  r.mesh = toy.hit.mesh;
-  r.tri = toy.hit.tri;
-  r.b1 = toy.hit.b1;
-  r.b2 = toy.hit.b2;
+  StoredReservoir r = anchoredAt(toy.hit);
   r.r.y.light = 0;
   r.r.y.tri = 1;
   r.r.y.b1 = 0.25f;
