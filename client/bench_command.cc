@@ -112,6 +112,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
     exitCode = 0;
   });
   addBenchGradientCommands(*bench, exitCode);
+  addBenchServiceCommand(*bench, exitCode);
 }
 
 }  // namespace invr::cli

@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   invr::cli::addZooCommand(app, exitCode);
   invr::cli::addBenchCommand(app, exitCode);
   invr::cli::addOptimizeCommands(app, exitCode);
+  invr::cli::addServiceCommands(app, exitCode);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -25,12 +26,15 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     app.exit(e);
     return invr::exit_code::kUsage;
+  } catch (const invr::cli::ExitError& e) {
+    if (*e.what()) std::cerr << "invr: " << e.what() << "\n";
+    return e.code;
   } catch (const invr::InputError& e) {
     std::cerr << "invr: error: " << e.what() << "\n";
     return invr::exit_code::kInputError;
   } catch (const std::exception& e) {
     std::cerr << "invr: internal error: " << e.what() << "\n";
-    return 3;
+    return invr::exit_code::kInternal;
   }
   return exitCode;
 }

@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/optim/local_run.h"
+#include "core/optim/results_io.h"
 #include "core/render/renderer.h"
 
 namespace invr::cli {
@@ -24,33 +25,6 @@ struct OptimizeArgs {
   int steps = 0;
   std::string method;
 };
-
-void writeParameters(const std::filesystem::path& dir, const Problem& p, const std::vector<float>& theta) {
-  // Scalars and colours as JSON; textures additionally as EXR images a person can look at.
-  std::ofstream js(dir / "parameters.json");
-  js << "{\n";
-  for (size_t i = 0; i < p.params.slots().size(); ++i) {
-    const ParameterSlot& s = p.params.slots()[i];
-    js << "  \"" << s.name << "\": ";
-    if (s.width > 0) {
-      std::string file = s.name;
-      std::replace(file.begin(), file.end(), '/', '_');
-      file += ".exr";
-      Image im(s.width, s.height, 3);
-      for (int y = 0; y < s.height; ++y)
-        for (int x = 0; x < s.width; ++x)
-          for (int c = 0; c < 3; ++c) im.at(x, y, c) = theta[s.offset + size_t((y * s.width + x) * s.channels + std::min(c, s.channels - 1))];
-      writeImage(dir / file, im);
-      js << "{\"texture\": \"" << file << "\", \"width\": " << s.width << ", \"height\": " << s.height << "}";
-    } else {
-      js << "[";
-      for (uint32_t k = 0; k < s.size; ++k) js << (k ? ", " : "") << theta[s.offset + k];
-      js << "]";
-    }
-    js << (i + 1 < p.params.slots().size() ? ",\n" : "\n");
-  }
-  js << "}\n";
-}
 
 void runOptimize(const OptimizeArgs& a) {
   AssetResolver assets;
@@ -67,7 +41,7 @@ void runOptimize(const OptimizeArgs& a) {
   std::filesystem::create_directories(dir);
   std::ofstream csv(dir / "convergence.csv");
   if (!csv) throw InputError("-o: cannot write to '" + a.out + "'");
-  csv << "method,step,seconds,loss,param_error\n";
+  csv << kConvergenceCsvHeader << "\n";
   const char* method = gradientMethodName(problem.gradient.method);
   std::cout << "optimizing " << (job.name().empty() ? a.job : job.name()) << ": " << problem.params.size() << " parameter values, "
             << problem.steps << " steps, method " << method << ", " << problem.scene->cameras.size() << " views\n"
@@ -82,7 +56,7 @@ void runOptimize(const OptimizeArgs& a) {
                 << "  " << r.seconds << " s\n" << std::flush;
   });
   bar.finish();
-  writeParameters(dir, problem, result.theta);
+  writeParameters(dir, problem.params, result.theta);
   RenderOptions ro;
   ro.spp = 64;
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {

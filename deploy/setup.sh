@@ -13,7 +13,7 @@ PACKAGES=(
   libopenimageio-dev libopenexr-dev libimath-dev
   libprotobuf-dev protobuf-compiler
   libgrpc++-dev protobuf-compiler-grpc
-  libspdlog-dev libfmt-dev
+  libspdlog-dev libfmt-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev
   python3 python3-grpcio python3-matplotlib

@@ -342,7 +342,11 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   if (restir) newPrimal.resize(req.views.size() * pixels * size_t(opt_.sppPrimal));
   std::vector<Image> adjoints(req.views.size());
   RestirCounters counters;
+  auto checkCancel = [&] {
+    if (req.cancel && req.cancel->load()) throw EvaluationCancelled{};
+  };
   for (size_t k = 0; k < req.views.size(); ++k) {
+    checkCancel();
     std::vector<StoredReservoir> store(restir ? pixels * size_t(opt_.sppPrimal) : 0);
     PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, restir ? &store : nullptr, nullptr, nullptr);
     if (restir) std::move(store.begin(), store.end(), newPrimal.begin() + long(k * store.size()));
@@ -352,8 +356,9 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
     counters.shadingPoints += pr.restir.shadingPoints;
     counters.sumM += pr.restir.sumM;
     if (!req.renderOnly) {
-      double l = imageLoss(opt_.loss, pr.image, targets_[size_t(req.views[k])], &adjoints[k], int(req.views.size()));
-      st.viewLoss.push_back(l * double(req.views.size()));
+      int batch = req.batchViews > 0 ? req.batchViews : int(req.views.size());
+      double l = imageLoss(opt_.loss, pr.image, targets_[size_t(req.views[k])], &adjoints[k], batch);
+      st.viewLoss.push_back(l * double(batch));
       st.loss += l;
     }
     out.renders.push_back(std::move(pr.image));
@@ -365,6 +370,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   if (!req.renderOnly || restirDerivative) {
     if (restirDerivative) newDerivative.resize(req.views.size() * pixels * size_t(opt_.sppGradient));
     for (size_t k = 0; k < req.views.size(); ++k) {
+      checkCancel();
       std::vector<StoredReservoir> store(restirDerivative ? pixels * size_t(opt_.sppGradient) : 0);
       PassResult pr = runPass(req.views[k], kDerivative, req, restirDerivative ? &session.derivative : nullptr,
                               restirDerivative ? &store : nullptr, req.renderOnly ? nullptr : &adjoints[k],
@@ -386,7 +392,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
     // Alg. 8: keep old reservoirs that no view of this batch can see. When the batch holds every
     // view and the geometry never moved, each old reservoir was seen by one of these views and is
     // visible still, so none would be kept: skip the visibility rays.
-    bool allViews = req.views.size() == scene_.cameras.size() && scene_.geometryVersion() == 0;
+    bool allViews = (req.allSessionViews || req.views.size() == scene_.cameras.size()) && scene_.geometryVersion() == 0;
     if (opt_.preserveOccluded && !allViews) {
       for (const auto& r : chain.items()) {
         bool seen = false;

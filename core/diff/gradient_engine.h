@@ -12,6 +12,7 @@
 // in the derivative pass.
 #pragma once
 
+#include <atomic>
 #include <vector>
 
 #include "core/diff/loss.h"
@@ -42,7 +43,17 @@ struct GradientRequest {
   uint64_t step = 0;
   uint64_t seed = 0;
   bool renderOnly = false;   // burn-in (§7): advance the reservoirs, no loss or gradient
+  // Views in the whole mini-batch when `views` is one shard of it (the loss is a mean over the
+  // batch's views, so shard gradients add up); 0 means views.size().
+  int batchViews = 0;
+  // The request holds every view whose reservoirs live in the session (lets Alg. 8 skip its
+  // visibility test); false is always safe.
+  bool allSessionViews = false;
+  // Checked between views: when it becomes true, evaluate() throws EvaluationCancelled.
+  const std::atomic<bool>* cancel = nullptr;
 };
+
+struct EvaluationCancelled {};
 
 struct GradientStats {
   double loss = 0.0;

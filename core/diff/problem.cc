@@ -1,8 +1,10 @@
 #include "core/diff/problem.h"
 
+#include <algorithm>
 #include <numeric>
 
 #include "core/error.h"
+#include "core/image/image.h"
 #include "core/render/renderer.h"
 
 namespace invr {
@@ -62,8 +64,9 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
     if (v < 0 || v > max) fail(field, "must be in 1.." + std::to_string(max) + " (got " + std::to_string(v) + ")");
     return v == 0 ? dflt : v;
   };
-  if (o.steps() < 0) fail("steps", "must be positive (got " + std::to_string(o.steps()) + ")");
-  p.steps = positive("steps", o.steps(), 100, 1000000);
+  if (o.has_steps() && (o.steps() < 1 || o.steps() > 1000000))
+    fail("steps", "must be in 1..1000000 (got " + std::to_string(o.steps()) + ")");
+  p.steps = o.has_steps() ? o.steps() : 100;
   p.gradient.sppPrimal = positive("spp_primal", o.spp_primal(), 1, 4096);
   p.gradient.sppGradient = positive("spp_gradient", o.spp_gradient(), 1, 4096);
   p.gradient.restir.candidates = positive("ris_candidates", o.ris_candidates(), 8, 4096);
@@ -91,12 +94,42 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   p.targetSpp = positive("target_spp", o.target_spp(), 256, 1 << 16);
   p.seed = o.seed();
   if (p.scene->width * p.scene->height <= 0) fail("scene", "empty film");
+  if (o.shards() < 0 || o.shards() > views)
+    fail("shards", "must be in 1.." + std::to_string(views) + " (one view per shard at most; got " + std::to_string(o.shards()) + ")");
+  int shards = o.shards() > 0 ? o.shards() : std::min(views, 4);
+  p.shards.resize(size_t(shards));
+  for (int v = 0; v < views; ++v) p.shards[size_t(v * shards / views)].push_back(v);  // contiguous blocks
+  if (o.targets_size() > 0) {
+    if (o.targets_size() != views)
+      fail("targets", "needs one image per view: the scene has " + std::to_string(views) + ", the job gives " + std::to_string(o.targets_size()));
+    for (int v = 0; v < views; ++v) {
+      std::string field = "optimization.targets[" + std::to_string(v) + "]";
+      Image im;
+      try {
+        im = readImage(assets.resolve(o.targets(v), field));
+      } catch (const InputError& e) {
+        throw InputError(std::string(e.what()).rfind(field, 0) == 0 ? e.what() : field + ": " + e.what());
+      }
+      if (im.width() != p.scene->width || im.height() != p.scene->height)
+        fail("targets[" + std::to_string(v) + "]", "is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) +
+             ", the film is " + std::to_string(p.scene->width) + "x" + std::to_string(p.scene->height));
+      if (im.channels() != 3) {  // grey or RGBA: the loss compares RGB
+        Image rgb(im.width(), im.height(), 3);
+        for (int y = 0; y < im.height(); ++y)
+          for (int x = 0; x < im.width(); ++x) rgb.setRgb(x, y, im.rgb(x, y));
+        im = std::move(rgb);
+      }
+      for (float x : im.data())
+        if (!std::isfinite(x)) fail("targets[" + std::to_string(v) + "]", "has non-finite pixels");
+      p.givenTargets.push_back(std::move(im));
+    }
+  }
   return p;
 }
 
-std::vector<Image> renderTargets(Problem& p) {
+Image renderTarget(Problem& p, int view) {
+  if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
   p.params.write(p.truth, *p.scene);
-  std::vector<Image> targets;
   // Targets set the floor of every reconstruction (the optimum fits their noise), so use the
   // lowest-variance estimator we have: visibility-aware RIS with 16 candidates.
   RenderOptions ro;
@@ -106,8 +139,34 @@ std::vector<Image> renderTargets(Problem& p) {
   ro.risCandidates = 16;
   ro.risVisibilityInTarget = true;
   ro.seed = mix64(p.seed ^ 0x7a26e7u);
-  for (size_t v = 0; v < p.scene->cameras.size(); ++v) targets.push_back(renderView(*p.scene, int(v), ro).image);
+  return renderView(*p.scene, view, ro).image;
+}
+
+std::vector<Image> renderTargets(Problem& p) {
+  std::vector<Image> targets;
+  for (size_t v = 0; v < p.scene->cameras.size(); ++v) targets.push_back(renderTarget(p, int(v)));
   return targets;
+}
+
+Evaluation evaluationAt(const Problem& p, uint64_t counter) {
+  Evaluation e;
+  e.counter = counter;
+  e.renderOnly = counter < uint64_t(p.burnIn);
+  e.views = viewsForStep(p, counter);
+  return e;
+}
+
+GradientRequest shardRequest(const Problem& p, const Evaluation& e, size_t shard) {
+  GradientRequest r;
+  const auto& mine = p.shards.at(shard);
+  for (int v : e.views)
+    if (std::binary_search(mine.begin(), mine.end(), v)) r.views.push_back(v);
+  r.step = e.counter;
+  r.seed = p.seed;
+  r.renderOnly = e.renderOnly;
+  r.batchViews = int(e.views.size());
+  r.allSessionViews = r.views.size() == mine.size();
+  return r;
 }
 
 double parameterError(const Problem& p, const std::vector<float>& theta) {

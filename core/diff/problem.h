@@ -22,13 +22,33 @@ struct Problem {
   int burnIn = 0;
   int targetSpp = 256;
   uint64_t seed = 0;
+  // Fixed partition of the views: each shard keeps its own reservoirs and is evaluated by one
+  // worker (or, in process, in shard order), so results do not depend on the worker count.
+  std::vector<std::vector<int>> shards;
+  // Uploaded targets (one per view); empty: rendered from the truth and the parameter error is known.
+  std::vector<Image> givenTargets;
+  bool groundTruthKnown() const { return givenTargets.empty(); }
 };
+
+// One evaluation of a job: burn-in evaluations come first, then one per gradient step. The
+// counter indexes the random streams, so burn-in and gradient steps never share one.
+struct Evaluation {
+  uint64_t counter = 0;
+  bool renderOnly = false;
+  std::vector<int> views;  // the mini-batch
+};
+Evaluation evaluationAt(const Problem& problem, uint64_t counter);
+
+// The request shard `shard` evaluates for an evaluation (views empty: the shard sits this one out).
+GradientRequest shardRequest(const Problem& problem, const Evaluation& e, size_t shard);
 
 Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets = {});
 
 // Ground-truth targets: the truth rendered with the forward renderer (direct illumination,
 // visibility-aware RIS with 16 candidates, target_spp samples per pixel).
+// Uploaded targets are returned as given.
 std::vector<Image> renderTargets(Problem& problem);
+Image renderTarget(Problem& problem, int view);
 
 // Root-mean-square difference between theta and the truth.
 double parameterError(const Problem& problem, const std::vector<float>& theta);

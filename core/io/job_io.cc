@@ -10,6 +10,8 @@
 
 namespace invr {
 
+namespace v1 = invr::v1;
+
 namespace {
 
 std::string lineCol(const std::string& text, size_t offset) {
@@ -98,6 +100,35 @@ void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string
   if (r.max_depth() < 0 || r.max_depth() > 1024) bad("max_depth", "must be in 1..1024 (got " + std::to_string(r.max_depth()) + ")");
   if (r.ris_candidates() < 0 || r.ris_candidates() > 4096) bad("ris_candidates", "must be in 1..4096 (got " + std::to_string(r.ris_candidates()) + ")");
   if (r.russian_roulette_depth() < 0) bad("russian_roulette_depth", "must not be negative");
+}
+
+namespace {
+
+void walkAssets(google::protobuf::Message& m, const std::string& path,
+                const std::function<void(v1::AssetRef&, const std::string&)>& fn) {
+  if (auto* ref = dynamic_cast<v1::AssetRef*>(&m)) {
+    fn(*ref, path);
+    return;
+  }
+  const auto* desc = m.GetDescriptor();
+  const auto* refl = m.GetReflection();
+  for (int i = 0; i < desc->field_count(); ++i) {
+    const auto* f = desc->field(i);
+    if (f->cpp_type() != google::protobuf::FieldDescriptor::CPPTYPE_MESSAGE) continue;
+    std::string sub = path.empty() ? f->name() : path + "." + f->name();
+    if (f->is_repeated()) {
+      for (int k = 0; k < refl->FieldSize(m, f); ++k)
+        walkAssets(*refl->MutableRepeatedMessage(&m, f, k), sub + "[" + std::to_string(k) + "]", fn);
+    } else if (refl->HasField(m, f)) {
+      walkAssets(*refl->MutableMessage(&m, f), sub, fn);
+    }
+  }
+}
+
+}  // namespace
+
+void forEachAssetRef(v1::JobSpec& job, const std::function<void(v1::AssetRef&, const std::string&)>& fn) {
+  walkAssets(job, "", fn);
 }
 
 }  // namespace invr

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "invr/v1/job.pb.h"
@@ -16,5 +17,9 @@ std::string jobToJson(const invr::v1::JobSpec& job);
 
 // Checks the render settings (negative spp, absurd depths). Throws InputError naming the field.
 void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string& path = "render");
+
+// Calls fn(ref, fieldPath) for every AssetRef in the job (meshes, textures, target images), with
+// paths spelled like the validation errors, e.g. "scene.shapes[2].mesh".
+void forEachAssetRef(invr::v1::JobSpec& job, const std::function<void(invr::v1::AssetRef&, const std::string&)>& fn);
 
 }  // namespace invr

@@ -7,40 +7,60 @@
 
 namespace invr {
 
+void accumulateShard(GradientResult& total, const GradientResult& shard) {
+  if (total.gradient.empty()) total.gradient.assign(shard.gradient.size(), 0.0);
+  for (size_t i = 0; i < shard.gradient.size(); ++i) total.gradient[i] += shard.gradient[i];
+  total.stats.loss += shard.stats.loss;
+  total.stats.nonFiniteSamples += shard.stats.nonFiniteSamples;
+}
+
+void checkDivergence(const Problem& p, uint64_t step, double loss, const std::vector<float>& theta) {
+  if (!std::isfinite(loss)) throw InputError("step " + std::to_string(step) + ": the loss is not finite (diverged)");
+  // Non-finite samples are dropped before they reach the loss, so divergence shows in the
+  // parameters: non-finite, or beyond any physical value.
+  for (const auto& slot : p.params.slots())
+    for (uint32_t k = 0; k < slot.size; ++k) {
+      float v = theta[slot.offset + k];
+      if (!std::isfinite(v) || std::abs(v) > kDivergenceLimit)
+        throw InputError("step " + std::to_string(step) + ": parameter '" + slot.name + "' reached " + std::to_string(v) +
+                         " (diverged; lower its learning rate)");
+    }
+}
+
 LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&)>& onStep) {
   LocalRunResult out;
   out.targets = renderTargets(p);
   GradientEngine engine(*p.scene, p.params, out.targets, p.gradient);
-  EngineSession session;
+  std::vector<EngineSession> sessions(p.shards.size());  // one reservoir chain pair per shard
   out.theta = p.initial;
   OptimizerState state;
   auto t0 = std::chrono::steady_clock::now();
-  uint64_t counter = 0;  // random streams: burn-in and gradient steps never share a step index
-  for (int b = 0; b < p.burnIn; ++b) {
-    GradientRequest r;
-    r.views = viewsForStep(p, counter);
-    r.step = counter++;
-    r.seed = p.seed;
-    r.renderOnly = true;
-    engine.evaluate(out.theta, r, session);
-  }
-  for (int s = 1; s <= p.steps; ++s) {
-    GradientRequest r;
-    r.views = viewsForStep(p, counter);
-    r.step = counter++;
-    r.seed = p.seed;
-    GradientResult g = engine.evaluate(out.theta, r, session);
-    if (!std::isfinite(g.stats.loss)) throw InputError("step " + std::to_string(s) + ": the loss is not finite (diverged)");
+  // Shards are evaluated one after another and summed in shard order: the service does the
+  // same arithmetic with the shards on workers, so both give bit-identical parameters.
+  auto evaluateAll = [&](const Evaluation& e) {
+    GradientResult total;
+    for (size_t s = 0; s < p.shards.size(); ++s) {
+      GradientRequest r = shardRequest(p, e, s);
+      if (r.views.empty()) continue;
+      GradientResult g = engine.evaluate(out.theta, r, sessions[s]);
+      accumulateShard(total, g);
+      total.stats.secondsPrimal += g.stats.secondsPrimal;
+      total.stats.secondsDerivative += g.stats.secondsDerivative;
+      total.stats.secondsReservoirUpdate += g.stats.secondsReservoirUpdate;
+      total.stats.reservoirs += g.stats.reservoirs;
+      total.stats.meanM = g.stats.meanM;
+      total.stats.meanNeighbours = g.stats.meanNeighbours;
+    }
+    if (total.gradient.empty()) total.gradient.assign(p.params.size(), 0.0);
+    return total;
+  };
+  uint64_t counter = 0;
+  for (; counter < uint64_t(p.burnIn); ++counter) evaluateAll(evaluationAt(p, counter));
+  for (int s = 1; s <= p.steps; ++s, ++counter) {
+    GradientResult g = evaluateAll(evaluationAt(p, counter));
+    if (!std::isfinite(g.stats.loss)) checkDivergence(p, uint64_t(s), g.stats.loss, out.theta);
     optimizerStep(p.optimizer, p.params, g.gradient, out.theta, state);
-    // Non-finite samples are dropped before they reach the loss, so divergence shows in the
-    // parameters: non-finite, or beyond any physical value.
-    for (const auto& slot : p.params.slots())
-      for (uint32_t k = 0; k < slot.size; ++k) {
-        float v = out.theta[slot.offset + k];
-        if (!std::isfinite(v) || std::abs(v) > kDivergenceLimit)
-          throw InputError("step " + std::to_string(s) + ": parameter '" + slot.name + "' reached " + std::to_string(v) +
-                           " (diverged; lower its learning rate)");
-      }
+    checkDivergence(p, uint64_t(s), g.stats.loss, out.theta);
     StepReport rep;
     rep.step = uint64_t(s);
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -27,6 +27,13 @@ struct LocalRunResult {
 // A parameter beyond this magnitude means the optimisation diverged.
 inline constexpr float kDivergenceLimit = 1e30f;
 
+// Adds one shard's gradient and loss to the step's total (the order is the caller's: shard order).
+void accumulateShard(GradientResult& total, const GradientResult& shard);
+
+// Throws InputError if the loss is non-finite or a parameter is non-finite or beyond
+// kDivergenceLimit, naming the step and the parameter.
+void checkDivergence(const Problem& problem, uint64_t step, double loss, const std::vector<float>& theta);
+
 // Throws InputError if the loss becomes non-finite or a parameter non-finite or beyond
 // kDivergenceLimit (divergence), naming the step and the parameter.
 LocalRunResult runLocally(Problem& problem, const std::function<void(const StepReport&)>& onStep = {});

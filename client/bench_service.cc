@@ -1,0 +1,116 @@
+// invr bench service: what the service costs and what a second worker buys.
+//   overhead_one_worker: per-step time of a job on the service with one worker, against the same
+//     job in process through the GradientEngine (same threads), minus 1. Target <= 0.05.
+//   speedup_two_workers: steps/s with two single-threaded workers over one, on a compute-bound
+//     job whose views split into two shards. Target >= 1.6 on two cores.
+// Steady-state rates: the first step (session build: scene, BVH, targets) is excluded.
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <iostream>
+#include <thread>
+
+#include "client/bench_report.h"
+#include "client/commands.h"
+#include "client/embedded.h"
+#include "client/service_client.h"
+#include "core/diff/zoo_jobs.h"
+#include "core/optim/local_run.h"
+#include "server/server.h"
+
+namespace invr::cli {
+
+namespace v1 = invr::v1;
+
+namespace {
+
+struct BenchServiceArgs {
+  int steps = 12;
+  bool json = false;
+};
+
+// Seconds per step after the first, from a list of (step, seconds since start).
+double steadySecondsPerStep(const std::vector<std::pair<uint64_t, double>>& pts) {
+  if (pts.size() < 2) throw std::runtime_error("bench service: too few steps to time");
+  return (pts.back().second - pts.front().second) / double(pts.back().first - pts.front().first);
+}
+
+double serviceSecondsPerStep(const v1::JobSpec& job, int workers, int threads) {
+  auto store = std::filesystem::temp_directory_path() / ("invr-bench-" + std::to_string(getpid()));
+  std::filesystem::remove_all(store);
+  server::ServerOptions so;
+  so.storeDir = store;
+  server::Server srv(so);
+  int port = srv.start();
+  LocalWorkers local;
+  local.start(workers, threads, port, store);
+  ServiceClient c("127.0.0.1:" + std::to_string(port));
+  if (!c.waitForWorkers(workers, 30)) throw std::runtime_error("bench service: local workers did not connect");
+  auto r = c.submit(job, "");
+  std::vector<std::pair<uint64_t, double>> pts;
+  std::atomic<bool> never{false};
+  auto final = c.watch(r.job_id(), 0, [&](const v1::ProgressEvent& e) {
+    if (e.has_step()) pts.emplace_back(e.step().step(), e.step().seconds());
+  }, never);
+  local.stop();
+  srv.shutdown();
+  std::filesystem::remove_all(store);
+  if (!final || final->state() != v1::SUCCEEDED) throw std::runtime_error("bench service: job did not succeed: " + (final ? final->reason() : ""));
+  return steadySecondsPerStep(pts);
+}
+
+double inProcessSecondsPerStep(const v1::JobSpec& job, int threads) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  Problem p = buildProblem(job);
+  std::vector<std::pair<uint64_t, double>> pts;
+  runLocally(p, [&](const StepReport& r) { pts.emplace_back(r.step, r.seconds); });
+  return steadySecondsPerStep(pts);
+}
+
+void run(const BenchServiceArgs& a) {
+  spdlog::set_level(spdlog::level::warn);
+  int cores = int(std::max(1u, std::thread::hardware_concurrency()));
+  // Overhead: cornell's built-in job, short targets (they are not timed).
+  v1::JobSpec one = zooJob("cornell");
+  one.mutable_optimization()->set_steps(a.steps);
+  one.mutable_optimization()->set_target_spp(16);
+  double inproc = inProcessSecondsPerStep(one, cores);
+  double service = serviceSecondsPerStep(one, 1, cores);
+  double overhead = service / inproc - 1.0;
+  std::cerr << "overhead: cornell, " << a.steps << " steps: in process " << inproc * 1e3 << " ms/step, service with 1 worker ("
+            << cores << " threads) " << service * 1e3 << " ms/step\n";
+  // Scaling: backlit's 16 views in 2 shards, every view every step: compute-bound.
+  v1::JobSpec many = zooJob("backlit");
+  many.mutable_optimization()->set_steps(std::max(4, a.steps / 2));
+  many.mutable_optimization()->set_target_spp(4);
+  many.mutable_optimization()->set_views_per_step(16);
+  many.mutable_optimization()->set_shards(2);
+  double w1 = serviceSecondsPerStep(many, 1, 1);
+  double w2 = serviceSecondsPerStep(many, 2, 1);
+  double speedup = w1 / w2;
+  std::cerr << "scaling: backlit, 16 views in 2 shards: 1 worker " << 1.0 / w1 << " steps/s, 2 workers " << 1.0 / w2 << " steps/s\n";
+  BenchReport rep("service");
+  rep.number("overhead_one_worker", overhead);
+  rep.number("speedup_two_workers", speedup);
+  rep.number("inprocess_seconds_per_step", inproc, "s");
+  rep.number("service_seconds_per_step", service, "s");
+  rep.number("one_worker_steps_per_second", 1.0 / w1);
+  rep.number("two_workers_steps_per_second", 1.0 / w2);
+  rep.print(a.json);
+}
+
+}  // namespace
+
+void addBenchServiceCommand(CLI::App& bench, int& exitCode) {
+  auto a = std::make_shared<BenchServiceArgs>();
+  auto* c = bench.add_subcommand("service", "Service overhead with one worker and speed-up with two (targets: <= 0.05, >= 1.6)");
+  c->add_option("--steps", a->steps, "steps per timed job")->capture_default_str()->check(CLI::Range(3, 10000));
+  c->add_flag("--json", a->json, "print the figures as JSON");
+  c->callback([a, &exitCode] {
+    run(*a);
+    exitCode = 0;
+  });
+}
+
+}  // namespace invr::cli

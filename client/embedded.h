@@ -1,0 +1,63 @@
+// Local worker processes for the embedded server of `invr run` and `invr bench service`.
+#pragma once
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "client/exit_codes.h"
+
+extern char** environ;
+
+namespace invr::cli {
+
+inline std::filesystem::path selfDir() { return std::filesystem::read_symlink("/proc/self/exe").parent_path(); }
+
+// Started with --parent-pid, so they exit with this process even if it is killed.
+struct LocalWorkers {
+  std::vector<pid_t> pids;
+  ~LocalWorkers() { stop(); }
+  void start(int n, int threads, int port, const std::filesystem::path& logDir) {
+    std::string exe = (selfDir() / "invr-worker").string();
+    if (!std::filesystem::exists(exe)) throw ExitError(exit_code::kInternal, "cannot find invr-worker next to invr (" + exe + ")");
+    for (int i = 0; i < n; ++i) {
+      std::vector<std::string> args = {exe, "--server", "127.0.0.1:" + std::to_string(port), "--threads", std::to_string(threads),
+                                       "--parent-pid", std::to_string(getpid()), "--name", "local-" + std::to_string(i + 1)};
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      posix_spawn_file_actions_t fa;
+      posix_spawn_file_actions_init(&fa);
+      std::string log = (logDir / ("worker-" + std::to_string(i + 1) + ".log")).string();
+      posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      posix_spawn_file_actions_adddup2(&fa, 1, 2);
+      // The child must see SIGINT/SIGTERM (this process blocks SIGINT for its own watcher thread).
+      posix_spawnattr_t attr;
+      posix_spawnattr_init(&attr);
+      sigset_t none;
+      sigemptyset(&none);
+      posix_spawnattr_setsigmask(&attr, &none);
+      posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK);
+      pid_t pid = 0;
+      int rc = posix_spawn(&pid, exe.c_str(), &fa, &attr, argv.data(), environ);
+      posix_spawn_file_actions_destroy(&fa);
+      posix_spawnattr_destroy(&attr);
+      if (rc != 0) throw ExitError(exit_code::kInternal, "cannot start " + exe + ": " + std::strerror(rc));
+      pids.push_back(pid);
+    }
+  }
+  void stop() {
+    for (pid_t p : pids) kill(p, SIGTERM);
+    for (pid_t p : pids) waitpid(p, nullptr, 0);
+    pids.clear();
+  }
+};
+
+}  // namespace invr::cli

@@ -1,0 +1,212 @@
+#include "client/service_client.h"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "client/exit_codes.h"
+#include "core/error.h"
+#include "core/io/job_io.h"
+#include "server/wire.h"
+
+namespace invr::cli {
+
+namespace v1 = invr::v1;
+
+void throwIfFailed(const grpc::Status& st, const std::string& what) {
+  if (st.ok()) return;
+  switch (st.error_code()) {
+    case grpc::StatusCode::UNAVAILABLE:
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+      throw ExitError(exit_code::kServerUnavailable, what + ": server unavailable (" + st.error_message() + ")");
+    case grpc::StatusCode::INVALID_ARGUMENT:
+    case grpc::StatusCode::NOT_FOUND:
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+    case grpc::StatusCode::FAILED_PRECONDITION:
+    case grpc::StatusCode::ALREADY_EXISTS:
+      throw ExitError(exit_code::kInputError, what + ": " + st.error_message());
+    default:
+      throw ExitError(exit_code::kInternal, what + ": " + st.error_message() + " (gRPC code " + std::to_string(int(st.error_code())) + ")");
+  }
+}
+
+int exitCodeFor(v1::JobState s) {
+  switch (s) {
+    case v1::SUCCEEDED: return exit_code::kOk;
+    case v1::CANCELLED: return exit_code::kCancelled;
+    default: return exit_code::kJobFailed;
+  }
+}
+
+ServiceClient::ServiceClient(const std::string& address) : address_(address), stub_(v1::InvrService::NewStub(wire::channel(address))) {}
+
+std::string ServiceClient::upload(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError("'" + file.string() + "': cannot read");
+  grpc::ClientContext ctx;
+  v1::AssetInfo info;
+  auto w = stub_->UploadAsset(&ctx, &info);
+  std::string buf(wire::kChunkBytes, '\0');
+  while (in) {
+    in.read(buf.data(), std::streamsize(buf.size()));
+    v1::AssetChunk c;
+    c.set_data(buf.data(), size_t(in.gcount()));
+    if (!w->Write(c)) break;  // the server ended the call early; Finish says why
+  }
+  w->WritesDone();
+  throwIfFailed(w->Finish(), "upload '" + file.string() + "'");
+  return info.sha256();
+}
+
+void ServiceClient::uploadAssets(v1::JobSpec& job, const std::filesystem::path& baseDir) {
+  forEachAssetRef(job, [&](v1::AssetRef& ref, const std::string& field) {
+    if (!ref.has_path()) return;
+    std::filesystem::path p(ref.path());
+    if (p.is_relative()) p = baseDir / p;
+    if (!std::filesystem::exists(p)) throw InputError(field + ".path: file '" + p.string() + "' not found");
+    ref.set_sha256(upload(p));
+  });
+}
+
+v1::SubmitJobResponse ServiceClient::submit(const v1::JobSpec& job, const std::string& requestId) {
+  grpc::ClientContext ctx;
+  v1::SubmitJobRequest req;
+  req.set_request_id(requestId);
+  *req.mutable_spec() = job;
+  v1::SubmitJobResponse resp;
+  throwIfFailed(stub_->SubmitJob(&ctx, req, &resp), "submit");
+  return resp;
+}
+
+v1::JobStatus ServiceClient::get(const std::string& job) {
+  grpc::ClientContext ctx;
+  v1::GetJobRequest req;
+  req.set_job_id(job);
+  v1::JobStatus s;
+  throwIfFailed(stub_->GetJob(&ctx, req, &s), "status");
+  return s;
+}
+
+v1::ListJobsResponse ServiceClient::list() {
+  grpc::ClientContext ctx;
+  v1::ListJobsResponse r;
+  throwIfFailed(stub_->ListJobs(&ctx, v1::ListJobsRequest(), &r), "list");
+  return r;
+}
+
+v1::JobStatus ServiceClient::cancel(const std::string& job) {
+  grpc::ClientContext ctx;
+  v1::CancelJobRequest req;
+  req.set_job_id(job);
+  v1::JobStatus s;
+  throwIfFailed(stub_->CancelJob(&ctx, req, &s), "cancel");
+  return s;
+}
+
+v1::ListWorkersResponse ServiceClient::workers() {
+  grpc::ClientContext ctx;
+  v1::ListWorkersResponse r;
+  throwIfFailed(stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &r), "workers");
+  return r;
+}
+
+bool ServiceClient::waitForWorkers(int n, double timeoutSeconds) {
+  auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeoutSeconds);
+  while (workers().workers_size() < n) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
+std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64_t from,
+                                                  const std::function<void(const v1::ProgressEvent&)>& onEvent,
+                                                  const std::atomic<bool>& interrupted) {
+  uint64_t next = from;
+  for (int breaks = 0;; ++breaks) {
+    grpc::ClientContext ctx;
+    v1::WatchJobRequest req;
+    req.set_job_id(job);
+    req.set_from_sequence(next);
+    auto reader = stub_->WatchJob(&ctx, req);
+    std::atomic<bool> done{false};
+    // Ctrl-C cancels the call from this thread (a signal handler cannot).
+    std::thread guard([&] {
+      while (!done && !interrupted) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (interrupted) ctx.TryCancel();
+    });
+    v1::ProgressEvent ev;
+    std::optional<v1::JobStatus> final;
+    while (reader->Read(&ev)) {
+      next = ev.sequence() + 1;
+      onEvent(ev);
+      if (ev.has_final()) final = ev.final();
+    }
+    done = true;
+    guard.join();
+    grpc::Status st = reader->Finish();
+    if (interrupted) return std::nullopt;
+    if (final) return final;
+    if (st.ok()) return get(job);  // watched from past the end: the job had already finished
+    // A broken stream: retry a few times (the server may be restarting), then report it.
+    if (breaks >= 20 || (st.error_code() != grpc::StatusCode::UNAVAILABLE && st.error_code() != grpc::StatusCode::CANCELLED))
+      throwIfFailed(st, "watch " + job);
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+}
+
+int ServiceClient::fetchAll(const std::string& job, const std::filesystem::path& dir) {
+  v1::JobStatus s = get(job);
+  std::filesystem::create_directories(dir);
+  int n = 0;
+  for (const auto& name : s.results()) {
+    grpc::ClientContext ctx;
+    v1::FetchResultRequest req;
+    req.set_job_id(job);
+    req.set_name(name);
+    auto reader = stub_->FetchResult(&ctx, req);
+    std::filesystem::path tmp = dir / (name + ".part");
+    {
+      std::ofstream out(tmp, std::ios::binary);
+      if (!out) throw InputError("-o: cannot write to '" + dir.string() + "'");
+      v1::AssetChunk c;
+      while (reader->Read(&c)) out.write(c.data().data(), std::streamsize(c.data().size()));
+    }
+    throwIfFailed(reader->Finish(), "fetch " + name);
+    std::filesystem::rename(tmp, dir / name);
+    ++n;
+  }
+  return n;
+}
+
+std::string describeEvent(const v1::ProgressEvent& e) {
+  char buf[512];
+  if (e.has_step()) {
+    const auto& s = e.step();
+    std::string err = s.param_error() >= 0 ? ("  param_error " + std::to_string(s.param_error())) : "";
+    std::snprintf(buf, sizeof buf, "step %llu/%llu  loss %.6g%s  %.1f s  %.2f steps/s  eta %.0f s", (unsigned long long)s.step(),
+                  (unsigned long long)s.steps(), s.loss(), err.c_str(), s.seconds(), s.steps_per_second(), s.eta_seconds());
+    std::string out = buf;
+    if (s.non_finite()) out += "  non-finite " + std::to_string(s.non_finite());
+    return out;
+  }
+  if (e.has_final()) {
+    const auto& f = e.final();
+    std::string out = f.job_id() + " " + v1::JobState_Name(f.state());
+    if (!f.reason().empty()) out += ": " + f.reason();
+    return out;
+  }
+  return e.message();
+}
+
+std::string eventJson(const v1::ProgressEvent& e) {
+  std::string s;
+  google::protobuf::util::JsonPrintOptions o;
+  o.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(e, &s, o);
+  return s;
+}
+
+}  // namespace invr::cli

@@ -1,0 +1,417 @@
+// invr run / submit / watch / status / list / cancel / fetch / plan: the service from the CLI.
+// `invr run` without --server starts an embedded server and local worker processes.
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "client/commands.h"
+#include "client/embedded.h"
+#include "client/exit_codes.h"
+#include "client/job_argument.h"
+#include "client/progress.h"
+#include "client/service_client.h"
+#include "core/diff/problem.h"
+#include "core/restir/reservoir_store.h"
+#include "server/server.h"
+#include "server/sha256.h"
+
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
+#include <google/protobuf/util/json_util.h>
+
+namespace invr::cli {
+
+namespace v1 = invr::v1;
+
+namespace {
+
+// Ctrl-C: a waiting thread turns SIGINT into a flag (gRPC calls are cancelled from threads, never
+// from a signal handler).
+std::atomic<bool>& interruptFlag() {
+  static std::atomic<bool> flag{false};
+  static std::once_flag once;
+  std::call_once(once, [] {
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    pthread_sigmask(SIG_BLOCK, &set, nullptr);
+    std::thread([set]() mutable {
+      int sig = 0;
+      sigwait(&set, &sig);
+      flag = true;
+    }).detach();
+  });
+  return flag;
+}
+
+struct JobArgs {
+  std::string job;
+  int steps = 0;
+  std::string method;
+  int targetSpp = 0;
+};
+
+void addJobArgs(CLI::App* cmd, JobArgs& a) {
+  cmd->add_option("job", a.job, "zoo scene name (its built-in job) or job file (.json)")->required();
+  cmd->add_option("--steps", a.steps, "override the number of steps")->check(CLI::PositiveNumber);
+  cmd->add_option("--method", a.method, "override the gradient method")->check(CLI::IsMember({"pt", "ris", "restir"}));
+  cmd->add_option("--target-spp", a.targetSpp, "override the samples per pixel of rendered targets")->check(CLI::PositiveNumber);
+}
+
+// The job from its argument with overrides applied; baseDir for its relative asset paths.
+v1::JobSpec loadJob(const JobArgs& a, std::filesystem::path& baseDir) {
+  AssetResolver assets;
+  v1::JobSpec job = jobFromArgument(a.job, assets);
+  baseDir = assets.baseDir;
+  if (isJobFile(a.job) && !job.has_optimization())
+    throw InputError("job file '" + a.job + "': has no 'optimization' (see `invr example cornell`)");
+  if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
+  if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
+  if (a.method == "pt") job.mutable_optimization()->set_method(v1::METHOD_PT);
+  if (a.method == "ris") job.mutable_optimization()->set_method(v1::METHOD_RIS);
+  if (a.method == "restir") job.mutable_optimization()->set_method(v1::METHOD_RESTIR);
+  if (job.name().empty()) job.set_name(std::filesystem::path(a.job).stem().string());
+  return job;
+}
+
+std::string randomRequestId() {
+  std::random_device rd;
+  std::ostringstream s;
+  s << std::hex << rd() << rd() << rd() << rd();
+  return s.str();
+}
+
+// Prints events: a progress bar on a terminal, plain lines otherwise, JSON lines with --json.
+class EventPrinter {
+ public:
+  explicit EventPrinter(bool json) : json_(json), tty_(isatty(fileno(stderr)) != 0), bar_("optimize") {}
+  void operator()(const v1::ProgressEvent& e) {
+    if (json_) {
+      std::cout << eventJson(e) << std::endl;
+      return;
+    }
+    if (e.has_step()) {
+      const auto& s = e.step();
+      bar_.update(s.steps() ? double(s.step()) / double(s.steps()) : 0.0);
+      uint64_t every = std::max<uint64_t>(1, s.steps() / 20);
+      if (!tty_ && (s.step() % every == 0 || s.step() == s.steps())) std::cout << describeEvent(e) << std::endl;
+      lastStep_ = e.step();
+      return;
+    }
+    if (tty_) std::cerr << "\r\033[K";
+    std::cout << describeEvent(e) << std::endl;
+  }
+  void finish() {
+    if (!json_) bar_.finish();
+  }
+  const v1::StepProgress& lastStep() const { return lastStep_; }
+
+ private:
+  bool json_, tty_;
+  ProgressBar bar_;
+  v1::StepProgress lastStep_;
+};
+
+// Watches to the end; returns the exit code. Ctrl-C stops watching only.
+int watchToEnd(ServiceClient& c, const std::string& id, uint64_t from, bool json, const std::string& resumeHint) {
+  EventPrinter print(json);
+  auto final = c.watch(id, from, [&](const v1::ProgressEvent& e) { print(e); }, interruptFlag());
+  print.finish();
+  if (!final) {
+    std::cerr << "invr: stopped watching; " << resumeHint << "\n";
+    return exit_code::kInterrupted;
+  }
+  if (final->state() != v1::SUCCEEDED)
+    std::cerr << "invr: job " << id << " " << v1::JobState_Name(final->state()) << ": " << final->reason() << "\n";
+  return exitCodeFor(final->state());
+}
+
+std::string where(const std::filesystem::path& dir) { return std::filesystem::absolute(dir).lexically_normal().string(); }
+
+// ------------------------------------------------------------------------------- plan
+
+void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
+  AssetResolver assets;
+  assets.baseDir = baseDir;
+  Problem p = buildProblem(job, assets);
+  const Scene& s = *p.scene;
+  size_t pixels = size_t(s.width) * size_t(s.height);
+  size_t tris = 0;
+  for (const auto& m : s.meshes) tris += m.triangleCount();
+  std::cout << "job " << job.name() << ": scene " << (job.has_zoo() ? job.zoo() : s.name) << ", " << s.cameras.size() << " view(s) "
+            << s.width << "x" << s.height << ", " << tris << " triangles, " << s.lights.size() << " light(s)\n";
+  std::cout << "parameters: " << p.params.size() << " values\n";
+  for (const auto& sl : p.params.slots()) {
+    std::cout << "  " << sl.name << ": " << sl.size << " value(s)";
+    if (sl.width) std::cout << " (" << sl.width << "x" << sl.height << " texture)";
+    std::cout << ", bounds [" << sl.lower << ", " << sl.upper << "], learning rate " << sl.learningRate << "\n";
+  }
+  const auto& g = p.gradient;
+  std::cout << "estimators:\n"
+            << "  primal and derivative: direct illumination, interior term only (Wang et al. 2023, Eq. 12-13),\n"
+            << "    independent primal and derivative passes (" << g.sppPrimal << " + " << g.sppGradient << " spp)\n"
+            << "  light sampling: " << gradientMethodName(g.method);
+  if (g.method != GradientMethod::Pt)
+    std::cout << " (" << g.restir.candidates << " candidates, visibility " << (g.restir.visibilityInTarget ? "in" : "not in") << " the target)";
+  if (g.method == GradientMethod::Restir)
+    std::cout << "; reuse: " << g.restir.neighbours << " neighbour(s) within " << g.radiusPixels << " px, M-cap " << g.restir.mCap
+              << ", burn-in " << p.burnIn << (g.forwardOnly ? ", forward only" : "");
+  std::cout << "\n  boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility\n"
+            << "    discontinuity moves with them\n"
+            << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd") << ", " << p.steps
+            << " steps, " << p.viewsPerStep << " view(s) per step\n";
+  std::cout << "targets: " << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp); parameter error reported"
+                                                   : "uploaded images; no ground truth")
+            << "\n";
+  size_t maxShard = 0;
+  for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
+  double paths = double(p.viewsPerStep) * double(pixels) * double(g.sppPrimal + g.sppGradient);
+  std::cout << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << paths / 1e6
+            << " M camera paths per step\n";
+  // Memory of one worker holding the largest shard: geometry and BVH, textures, targets and
+  // renders, reservoir chains (two with restir) and gradient buffers.
+  double geometry = double(tris) * (3 * 12 + 12 + 4 * 3) * 2.5;  // vertices, face normals, indices; BVH ~1.5x
+  double texels = 0;
+  for (const auto& sl : p.params.slots()) texels += sl.width ? double(sl.size) * 4 : 0;
+  double images = double(maxShard) * double(pixels) * 12 * 3;
+  double reservoirs = 0;
+  if (g.method == GradientMethod::Restir)
+    reservoirs = double(maxShard) * double(pixels) * double(g.sppPrimal + (g.forwardOnly ? 0 : g.sppGradient)) *
+                 (sizeof(StoredReservoir) + 24) * 2;  // current and previous chain, kd-tree
+  double gradients = double(p.params.size()) * 8 * double(std::thread::hardware_concurrency() + 2);
+  double total = geometry + texels * 3 + images + reservoirs + gradients;
+  std::printf("memory per worker (largest shard): ~%.1f MiB (geometry %.1f, images %.1f, reservoirs %.1f, gradients %.1f)\n",
+              total / 1048576.0, geometry / 1048576.0, images / 1048576.0, reservoirs / 1048576.0, gradients / 1048576.0);
+}
+
+// ------------------------------------------------------------------------------- embedded
+
+struct RunArgs : JobArgs {
+  std::string out = "out/run";
+  std::string server;
+  std::string store;
+  int workers = 0;
+  bool json = false;
+  bool verbose = false;
+};
+
+int runJob(const RunArgs& a) {
+  std::filesystem::path baseDir;
+  v1::JobSpec job = loadJob(a, baseDir);
+  std::filesystem::path out(a.out);
+  if (!a.server.empty()) {  // against a running server: submit, watch, fetch
+    ServiceClient c(a.server);
+    c.uploadAssets(job, baseDir);
+    auto r = c.submit(job, randomRequestId());
+    std::cout << "submitted " << r.job_id() << " to " << a.server << "\n";
+    int code = watchToEnd(c, r.job_id(), 0, a.json, "the job goes on: invr watch " + r.job_id() + " --server " + a.server);
+    if (code == exit_code::kOk || code == exit_code::kJobFailed) {
+      int n = c.fetchAll(r.job_id(), out);
+      std::cout << "wrote " << n << " file(s) to " << where(out) << "\n";
+    }
+    return code;
+  }
+
+  // Embedded: a server in this process and local worker processes.
+  AssetResolver localAssets;
+  localAssets.baseDir = baseDir;
+  Problem probe = buildProblem(job, localAssets);  // fail fast, with the file's own paths in errors
+  int cores = int(std::max(1u, std::thread::hardware_concurrency()));
+  int workers = a.workers > 0 ? a.workers : std::max(2, cores);
+  int busy = std::min<int>(workers, int(probe.shards.size()));
+  int threads = std::max(1, cores / std::max(1, busy));
+  bool tempStore = a.store.empty();
+  std::filesystem::path store = tempStore ? std::filesystem::temp_directory_path() / ("invr-run-" + std::to_string(getpid())) : std::filesystem::path(a.store);
+  std::filesystem::create_directories(store);
+  // Worker trouble reaches the user as progress events; the log is for --verbose.
+  if (!a.verbose) spdlog::set_level(spdlog::level::err);
+  server::ServerOptions so;
+  so.storeDir = store;
+  server::Server srv(so);
+  int port = srv.start();
+  LocalWorkers local;
+  local.start(workers, threads, port, store);
+  ServiceClient c("127.0.0.1:" + std::to_string(port));
+  // Shards stick to the workers they start on: let every local worker connect first.
+  if (!c.waitForWorkers(workers, 30)) throw ExitError(exit_code::kInternal, "local workers did not connect (logs in " + store.string() + ")");
+  c.uploadAssets(job, baseDir);
+  // The request id is the job's content: with a kept --store, running the same job again
+  // resumes it (or returns its results) instead of starting over.
+  std::string bytes;
+  google::protobuf::io::StringOutputStream sos(&bytes);
+  {
+    google::protobuf::io::CodedOutputStream cos(&sos);
+    cos.SetSerializationDeterministic(true);
+    job.SerializeToCodedStream(&cos);
+  }
+  server::Sha256 h;
+  h.update(bytes.data(), bytes.size());
+  auto r = c.submit(job, "run-" + h.hex());
+  if (!a.json)
+    std::cout << "invr run: " << job.name() << " as " << r.job_id() << (r.existing() ? " (resumed)" : "") << " on an embedded server with "
+              << workers << " local worker(s) x " << threads << " thread(s)\n";
+  int code = watchToEnd(c, r.job_id(), 0, a.json,
+                        tempStore ? "the embedded server stops with this command (use --store DIR to keep and resume jobs)"
+                                  : "the job resumes when you run the same command again");
+  if (code == exit_code::kOk || code == exit_code::kJobFailed) {
+    int n = c.fetchAll(r.job_id(), out);
+    v1::JobStatus st = c.get(r.job_id());
+    if (!a.json) {
+      if (st.state() == v1::SUCCEEDED) {
+        std::cout << "done: " << st.step() << " steps in " << st.seconds() << " s, loss " << st.loss();
+        if (st.param_error() >= 0) std::cout << ", parameter error " << parameterError(probe, probe.initial) << " -> " << st.param_error();
+        std::cout << "\n";
+      }
+      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv, final/target renders, progress.jsonl)\n";
+    }
+  }
+  local.stop();
+  srv.shutdown();
+  if (tempStore) {
+    std::error_code ec;
+    std::filesystem::remove_all(store, ec);
+  }
+  return code;
+}
+
+}  // namespace
+
+void addServiceCommands(CLI::App& app, int& exitCode) {
+  auto run = std::make_shared<RunArgs>();
+  auto* r = app.add_subcommand("run", "Run an optimisation job: on an embedded server with local workers, or on --server");
+  addJobArgs(r, *run);
+  r->add_option("-o,--out", run->out, "folder for the results")->capture_default_str();
+  r->add_option("--server", run->server, "host:port of a running invr-server (default: embedded)");
+  r->add_option("--workers", run->workers, "local worker processes (embedded; default one per core, at least 2)")->check(CLI::PositiveNumber);
+  r->add_option("--store", run->store, "keep the embedded server's job store here (an interrupted run resumes)");
+  r->add_flag("--json", run->json, "one JSON object per progress event on stdout");
+  r->add_flag("-v,--verbose", run->verbose, "the embedded server's log on stderr");
+  r->callback([run, &exitCode] { exitCode = runJob(*run); });
+
+  auto serverOpt = [](CLI::App* cmd, std::string& s) {
+    cmd->add_option("--server", s, "host:port of the invr-server")->default_val("127.0.0.1:50051")->capture_default_str();
+  };
+
+  auto sub = std::make_shared<RunArgs>();
+  auto requestId = std::make_shared<std::string>();
+  auto* s = app.add_subcommand("submit", "Submit a job to a server; prints its id");
+  addJobArgs(s, *sub);
+  serverOpt(s, sub->server);
+  s->add_option("--request-id", *requestId, "makes a retried submission idempotent (default: random)");
+  s->callback([sub, requestId, &exitCode] {
+    std::filesystem::path baseDir;
+    v1::JobSpec job = loadJob(*sub, baseDir);
+    ServiceClient c(sub->server);
+    c.uploadAssets(job, baseDir);
+    auto resp = c.submit(job, requestId->empty() ? randomRequestId() : *requestId);
+    std::cout << resp.job_id() << "\n";
+    exitCode = exit_code::kOk;
+  });
+
+  struct IdArgs {
+    std::string id, server, out = "out/fetch";
+    uint64_t from = 0;
+    bool json = false;
+  };
+  auto w = std::make_shared<IdArgs>();
+  auto* wc = app.add_subcommand("watch", "Stream a job's progress until it ends (Ctrl-C stops watching, not the job)");
+  wc->add_option("job_id", w->id)->required();
+  serverOpt(wc, w->server);
+  wc->add_option("--from", w->from, "resume from this event sequence number");
+  wc->add_flag("--json", w->json, "one JSON object per event");
+  wc->callback([w, &exitCode] {
+    ServiceClient c(w->server);
+    exitCode = watchToEnd(c, w->id, w->from, w->json, "the job goes on: invr watch " + w->id + " --server " + w->server);
+  });
+
+  auto st = std::make_shared<IdArgs>();
+  auto* sc = app.add_subcommand("status", "A job's state (exit code 0 running/succeeded, 4 failed, 6 cancelled)");
+  sc->add_option("job_id", st->id)->required();
+  serverOpt(sc, st->server);
+  sc->add_flag("--json", st->json, "as JSON");
+  sc->callback([st, &exitCode] {
+    ServiceClient c(st->server);
+    v1::JobStatus s = c.get(st->id);
+    if (st->json) {
+      std::string js;
+      google::protobuf::util::JsonPrintOptions o;
+      o.preserve_proto_field_names = true;
+      (void)google::protobuf::util::MessageToJsonString(s, &js, o);
+      std::cout << js << "\n";
+    } else {
+      std::cout << s.job_id() << "  " << v1::JobState_Name(s.state()) << "  step " << s.step() << "/" << s.steps() << "  loss " << s.loss();
+      if (s.param_error() >= 0) std::cout << "  param_error " << s.param_error();
+      std::cout << "  " << s.seconds() << " s";
+      if (!s.reason().empty()) std::cout << "\n  reason: " << s.reason();
+      std::cout << "\n";
+    }
+    exitCode = (s.state() == v1::FAILED || s.state() == v1::CANCELLED) ? exitCodeFor(s.state()) : exit_code::kOk;
+  });
+
+  auto ls = std::make_shared<IdArgs>();
+  auto* lc = app.add_subcommand("list", "List the server's jobs");
+  serverOpt(lc, ls->server);
+  lc->callback([ls, &exitCode] {
+    ServiceClient c(ls->server);
+    const v1::ListJobsResponse all = c.list();
+    for (const auto& j : all.jobs())
+      std::cout << j.job_id() << "  " << v1::JobState_Name(j.state()) << "  " << j.name() << "  step " << j.step() << "/" << j.steps() << "\n";
+    exitCode = exit_code::kOk;
+  });
+
+  auto cn = std::make_shared<IdArgs>();
+  auto* cc = app.add_subcommand("cancel", "Cancel a job (idempotent)");
+  cc->add_option("job_id", cn->id)->required();
+  serverOpt(cc, cn->server);
+  cc->callback([cn, &exitCode] {
+    ServiceClient c(cn->server);
+    v1::JobStatus s = c.cancel(cn->id);
+    std::cout << s.job_id() << "  " << v1::JobState_Name(s.state()) << (s.state() == v1::RUNNING ? " (stopping)" : "") << "\n";
+    exitCode = exit_code::kOk;
+  });
+
+  auto fe = std::make_shared<IdArgs>();
+  auto* fc = app.add_subcommand("fetch", "Download a job's results (parameters, renders, convergence CSV, progress log)");
+  fc->add_option("job_id", fe->id)->required();
+  serverOpt(fc, fe->server);
+  fc->add_option("-o,--out", fe->out, "folder")->capture_default_str();
+  fc->callback([fe, &exitCode] {
+    ServiceClient c(fe->server);
+    int n = c.fetchAll(fe->id, fe->out);
+    std::cout << "wrote " << n << " file(s) to " << where(fe->out) << "\n";
+    exitCode = exit_code::kOk;
+  });
+
+  auto wk = std::make_shared<IdArgs>();
+  auto* wkc = app.add_subcommand("workers", "List the workers connected to a server");
+  serverOpt(wkc, wk->server);
+  wkc->callback([wk, &exitCode] {
+    ServiceClient c(wk->server);
+    const v1::ListWorkersResponse all = c.workers();
+    for (const auto& w : all.workers())
+      std::cout << w.name() << "  " << w.capacity() << " thread(s)  " << w.shards() << " shard(s)" << (w.leaving() ? "  leaving" : "") << "\n";
+    exitCode = exit_code::kOk;
+  });
+
+  auto pl = std::make_shared<JobArgs>();
+  auto* pc = app.add_subcommand("plan", "Print what a job will compute (estimators, parameters, memory) without running it");
+  addJobArgs(pc, *pl);
+  pc->callback([pl, &exitCode] {
+    std::filesystem::path baseDir;
+    v1::JobSpec job = loadJob(*pl, baseDir);
+    printPlan(job, baseDir);
+    exitCode = exit_code::kOk;
+  });
+}
+
+}  // namespace invr::cli

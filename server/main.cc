@@ -1,0 +1,52 @@
+// invr-server: the optimisation service (see server.h).
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <fstream>
+#include <iostream>
+
+#include "server/server.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"invr-server: accepts optimisation jobs and farms their gradient steps to invr-worker processes"};
+  invr::server::ServerOptions o;
+  std::string portFile;
+  double maxAssetMb = 1024;
+  app.add_option("--store", o.storeDir, "job and asset store folder (kept across restarts)")->capture_default_str();
+  app.add_option("--address", o.address, "listen address; port 0 picks a free one")->capture_default_str();
+  app.add_option("--port-file", portFile, "write the port listened on to this file");
+  app.add_option("--max-queued", o.maxQueued, "jobs waiting beyond this are refused (RESOURCE_EXHAUSTED)")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--lease-seconds", o.leaseSeconds, "a task unanswered this long is reassigned")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--heartbeat-timeout", o.heartbeatTimeoutSeconds, "a worker silent this long is presumed gone")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-attempts", o.maxAttempts, "attempts per shard and step before a job fails")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-asset-mb", maxAssetMb, "largest upload accepted")->capture_default_str()->check(CLI::PositiveNumber);
+  CLI11_PARSE(app, argc, argv);
+  o.maxAssetBytes = uint64_t(maxAssetMb * 1024 * 1024);
+  if (o.address.rfind("127.0.0.1:", 0) != 0 && o.address.rfind("localhost:", 0) != 0 && o.address.rfind("[::1]:", 0) != 0)
+    spdlog::warn("listening on {}: not loopback, and the service has no authentication", o.address);
+
+  // Signals are taken by a waiting thread, so shutdown runs outside a signal handler.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  try {
+    invr::server::Server server(o);
+    int port = server.start();
+    if (!portFile.empty()) {
+      std::ofstream(portFile + ".tmp") << port << "\n";
+      std::rename((portFile + ".tmp").c_str(), portFile.c_str());
+    }
+    std::cout << "invr-server: listening on port " << port << std::endl;
+    int sig = 0;
+    sigwait(&set, &sig);
+    spdlog::info("signal {}: shutting down (unfinished jobs resume on restart)", sig);
+    server.shutdown();
+  } catch (const std::exception& e) {
+    std::cerr << "invr-server: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,1130 @@
+#include "server/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "core/diff/problem.h"
+#include "core/error.h"
+#include "core/image/image.h"
+#include "core/io/job_io.h"
+#include "core/optim/local_run.h"
+#include "core/optim/results_io.h"
+#include "invr/v1/service.grpc.pb.h"
+#include "server/asset_store.h"
+#include "server/job_store.h"
+#include "server/wire.h"
+
+namespace invr::server {
+
+namespace v1 = invr::v1;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+int64_t unixMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+bool finished(v1::JobState s) { return s == v1::SUCCEEDED || s == v1::FAILED || s == v1::CANCELLED; }
+
+const char* stateName(v1::JobState s) { return v1::JobState_Name(s).c_str(); }
+
+struct JobCancelled {};
+struct JobFailed {
+  std::string reason;
+};
+
+// A queue of messages written one at a time on a server stream. Decisions are made under the
+// stream's own mutex and Start*/Finish are called after releasing it, so a reaction that runs
+// inline cannot deadlock.
+template <class Reactor, class Msg>
+class WriteQueue {
+ public:
+  explicit WriteQueue(Reactor* r) : r_(r) {}
+  void push(Msg m, bool last = false) {
+    const Msg* start = nullptr;
+    {
+      std::lock_guard<std::mutex> lk(mu_);
+      if (closing_) return;
+      q_.push_back(std::move(m));
+      if (last) closing_ = true, lastQueued_ = true;
+      if (writing_) return;
+      writing_ = true;
+      start = &q_.front();
+    }
+    r_->StartWrite(start);
+  }
+  // After a write completes: the next message, or Finish once closing and drained.
+  void done(bool ok) {
+    const Msg* next = nullptr;
+    bool fin = false;
+    {
+      std::lock_guard<std::mutex> lk(mu_);
+      q_.pop_front();
+      if (!ok) closing_ = true, q_.clear();
+      if (!q_.empty()) {
+        next = &q_.front();
+      } else {
+        writing_ = false;
+        if (closing_ && !finished_) finished_ = fin = true;
+      }
+    }
+    if (next) r_->StartWrite(next);
+    if (fin) r_->Finish(status_);
+  }
+  // Stop writing; Finish now if nothing is in flight, else when it completes.
+  void close(grpc::Status status = grpc::Status::OK) {
+    bool fin = false;
+    {
+      std::lock_guard<std::mutex> lk(mu_);
+      if (!closing_) status_ = status;
+      closing_ = true;
+      if (!writing_ && !finished_) finished_ = fin = true;
+    }
+    if (fin) r_->Finish(status_);
+  }
+
+ private:
+  Reactor* r_;
+  std::mutex mu_;
+  std::deque<Msg> q_;
+  bool writing_ = false, closing_ = false, finished_ = false, lastQueued_ = false;
+  grpc::Status status_ = grpc::Status::OK;
+};
+
+}  // namespace
+
+// ----------------------------------------------------------------------------------------------
+
+struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService::CallbackService {
+  class WorkerStream;
+  class Watcher;
+
+  struct WorkerEntry {
+    uint64_t id = 0;
+    std::string name;
+    uint32_t capacity = 1;
+    WorkerStream* stream = nullptr;  // null once the stream ended
+    bool leaving = false;
+    Clock::time_point lastSeen;
+    bool alive() const { return stream != nullptr; }
+  };
+
+  struct JobEntry {
+    v1::JobRecord rec;
+    std::vector<v1::ProgressEvent> events;
+    uint64_t nextSeq = 1;
+    bool cancelRequested = false;
+    uint64_t step = 0, steps = 0;
+    double loss = std::nan(""), paramError = -1, seconds = 0;
+    std::string method;
+    std::set<Watcher*> watchers;
+  };
+
+  struct Lease {
+    uint64_t taskId = 0;
+    size_t shard = 0;
+    uint64_t worker = 0;
+    Clock::time_point deadline;
+    bool done = false;
+    v1::TaskResult result;
+  };
+
+  // One running job's scheduling state.
+  struct Run {
+    std::string id;
+    std::vector<uint64_t> assignment;  // shard -> worker (0: none); sticky
+    std::vector<int> attempts;         // failed attempts of the current evaluation, per shard
+    std::vector<bool> fresh;           // shard's session will be built from scratch on its worker
+    uint32_t rebuildBurnIn = 0;
+    bool announcedWaiting = false;
+  };
+
+  ServerOptions opt;
+  JobStore jobs;
+  AssetStore assets;
+  std::unique_ptr<grpc::Server> grpcServer;
+
+  std::mutex mu;
+  std::condition_variable cv;
+  std::map<std::string, JobEntry> jobTable;
+  std::map<std::string, std::string> byRequestId;
+  std::deque<std::string> queue;  // queued job ids, in order
+  std::map<uint64_t, WorkerEntry> workers;
+  std::map<uint64_t, Lease> leases;
+  uint64_t nextWorker = 1, nextTask = 1;
+  const std::vector<uint64_t>* runAssignment = nullptr;  // the running job's shard -> worker
+  bool stopping = false;
+
+  // Control work (job validation) runs here, off the gRPC threads.
+  std::deque<std::function<void()>> control;
+  std::condition_variable controlCv;
+  std::thread controlThread, runnerThread;
+
+  explicit Impl(ServerOptions o) : opt(std::move(o)), jobs(opt.storeDir / "jobs"), assets(opt.storeDir / "assets") {}
+
+  // ------------------------------------------------------------------ streams
+
+  class WorkerStream final : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::ServerMessage> {
+   public:
+    explicit WorkerStream(Impl* s) : s_(s), out_(this) { StartRead(&in_); }
+    void send(v1::ServerMessage m) { out_.push(std::move(m)); }
+    void close() { out_.close(); }
+    void OnReadDone(bool ok) override {
+      if (!ok) {
+        s_->workerGone(this);
+        out_.close();
+        return;
+      }
+      s_->onWorkerMessage(this, in_);
+      StartRead(&in_);
+    }
+    void OnWriteDone(bool ok) override { out_.done(ok); }
+    void OnCancel() override { out_.close(); }
+    void OnDone() override {
+      s_->workerGone(this);
+      delete this;
+    }
+
+   private:
+    Impl* s_;
+    v1::WorkerMessage in_;
+    WriteQueue<WorkerStream, v1::ServerMessage> out_;
+  };
+
+  class Watcher final : public grpc::ServerWriteReactor<v1::ProgressEvent> {
+   public:
+    Watcher(Impl* s, std::string job) : s_(s), job_(std::move(job)), out_(this) {}
+    void push(const v1::ProgressEvent& e) { out_.push(e, e.has_final()); }
+    void close(grpc::Status st) { out_.close(st); }
+    void OnWriteDone(bool ok) override { out_.done(ok); }
+    void OnCancel() override { out_.close(grpc::Status::CANCELLED); }
+    void OnDone() override {
+      s_->removeWatcher(job_, this);
+      delete this;
+    }
+
+   private:
+    Impl* s_;
+    std::string job_;
+    WriteQueue<Watcher, v1::ProgressEvent> out_;
+  };
+
+  // Streams a file in chunks (results to clients, assets to workers).
+  class FileSender final : public grpc::ServerWriteReactor<v1::AssetChunk> {
+   public:
+    explicit FileSender(const std::filesystem::path& path) : in_(path, std::ios::binary) {
+      if (!in_) {
+        Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "cannot read '" + path.filename().string() + "'"));
+        return;
+      }
+      next();
+    }
+    void OnWriteDone(bool ok) override {
+      if (!ok) return Finish(grpc::Status::CANCELLED);
+      next();
+    }
+    void OnDone() override { delete this; }
+
+   private:
+    void next() {
+      std::string buf(wire::kChunkBytes, '\0');
+      in_.read(buf.data(), std::streamsize(buf.size()));
+      buf.resize(size_t(in_.gcount()));
+      if (buf.empty() && sent_) return Finish(grpc::Status::OK);
+      sent_ = true;  // an empty file still sends one (empty) chunk
+      chunk_.set_data(std::move(buf));
+      StartWrite(&chunk_);
+    }
+    std::ifstream in_;
+    v1::AssetChunk chunk_;
+    bool sent_ = false;
+  };
+
+  class Uploader final : public grpc::ServerReadReactor<v1::AssetChunk> {
+   public:
+    Uploader(Impl* s, v1::AssetInfo* info) : info_(info), up_(s->assets, s->opt.maxAssetBytes), max_(s->opt.maxAssetBytes) {
+      StartRead(&chunk_);
+    }
+    void OnReadDone(bool ok) override {
+      if (ok) {
+        if (!up_.append(chunk_.data()))
+          return Finish(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                     "upload: larger than the server's limit of " + std::to_string(max_) + " bytes"));
+        return StartRead(&chunk_);
+      }
+      try {
+        info_->set_size(up_.size());
+        info_->set_sha256(up_.commit());
+        Finish(grpc::Status::OK);
+      } catch (const std::exception& e) {
+        Finish(grpc::Status(grpc::StatusCode::INTERNAL, e.what()));
+      }
+    }
+    void OnDone() override { delete this; }
+
+   private:
+    v1::AssetInfo* info_;
+    v1::AssetChunk chunk_;
+    AssetStore::Upload up_;
+    uint64_t max_;
+  };
+
+  // ------------------------------------------------------------------ client service
+
+  grpc::ServerReadReactor<v1::AssetChunk>* UploadAsset(grpc::CallbackServerContext*, v1::AssetInfo* info) override {
+    return new Uploader(this, info);
+  }
+
+  grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
+                                      v1::SubmitJobResponse* resp) override {
+    auto* reactor = ctx->DefaultReactor();
+    {
+      std::lock_guard<std::mutex> lk(mu);
+      if (!req->request_id().empty()) {
+        auto it = byRequestId.find(req->request_id());
+        if (it != byRequestId.end()) {  // a retry: the same job, not a second one
+          resp->set_job_id(it->second);
+          resp->set_existing(true);
+          reactor->Finish(grpc::Status::OK);
+          return reactor;
+        }
+      }
+      if (int(queue.size()) >= opt.maxQueued) {
+        reactor->Finish(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                     "queue full: " + std::to_string(queue.size()) + " jobs waiting (limit " +
+                                         std::to_string(opt.maxQueued) + "); retry later"));
+        return reactor;
+      }
+    }
+    // Building the problem loads meshes and textures: not on a gRPC thread.
+    postControl([this, reactor, req, resp] { reactor->Finish(submit(*req, *resp)); });
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req, v1::JobStatus* resp) override {
+    auto* reactor = ctx->DefaultReactor();
+    std::lock_guard<std::mutex> lk(mu);
+    auto it = jobTable.find(req->job_id());
+    if (it == jobTable.end()) {
+      reactor->Finish(notFound(req->job_id()));
+    } else {
+      *resp = status(it->second);
+      reactor->Finish(grpc::Status::OK);
+    }
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*, v1::ListJobsResponse* resp) override {
+    std::lock_guard<std::mutex> lk(mu);
+    for (auto& [id, j] : jobTable) *resp->add_jobs() = status(j);
+    auto* reactor = ctx->DefaultReactor();
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const v1::CancelJobRequest* req, v1::JobStatus* resp) override {
+    auto* reactor = ctx->DefaultReactor();
+    std::unique_lock<std::mutex> lk(mu);
+    auto it = jobTable.find(req->job_id());
+    if (it == jobTable.end()) {
+      reactor->Finish(notFound(req->job_id()));
+      return reactor;
+    }
+    JobEntry& j = it->second;
+    if (j.rec.state() == v1::QUEUED) {
+      // Not started: nothing runs, so it ends here (the store write is one small file).
+      queue.erase(std::remove(queue.begin(), queue.end(), j.rec.job_id()), queue.end());
+      j.rec.set_reason("cancelled before it started");
+      endJobLocked(j, v1::CANCELLED);
+    } else if (j.rec.state() == v1::RUNNING && !j.cancelRequested) {
+      j.cancelRequested = true;  // the runner stops the job and its in-flight tasks
+      logEventLocked(j, "cancel requested");
+      cv.notify_all();
+    }
+    *resp = status(j);  // idempotent: cancelling a finished job reports its state
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+
+  grpc::ServerWriteReactor<v1::ProgressEvent>* WatchJob(grpc::CallbackServerContext*, const v1::WatchJobRequest* req) override {
+    auto* w = new Watcher(this, req->job_id());
+    std::lock_guard<std::mutex> lk(mu);
+    auto it = jobTable.find(req->job_id());
+    if (it == jobTable.end()) {
+      w->close(notFound(req->job_id()));
+      return w;
+    }
+    JobEntry& j = it->second;
+    j.watchers.insert(w);
+    bool sentFinal = false;
+    for (const auto& e : j.events)
+      if (e.sequence() >= req->from_sequence()) {
+        w->push(e);
+        sentFinal = sentFinal || e.has_final();
+      }
+    if (finished(j.rec.state()) && !sentFinal) w->close(grpc::Status::OK);  // resumed past the end
+    return w;
+  }
+
+  grpc::ServerWriteReactor<v1::AssetChunk>* FetchResult(grpc::CallbackServerContext*, const v1::FetchResultRequest* req) override {
+    std::filesystem::path path;
+    grpc::Status st;
+    {
+      std::lock_guard<std::mutex> lk(mu);
+      auto it = jobTable.find(req->job_id());
+      if (it == jobTable.end()) {
+        st = notFound(req->job_id());
+      } else {
+        const auto& res = it->second.rec.results();
+        if (std::find(res.begin(), res.end(), req->name()) == res.end())
+          st = grpc::Status(grpc::StatusCode::NOT_FOUND, "job " + req->job_id() + " has no result '" + req->name() + "'");
+        else
+          path = jobs.resultsDir(req->job_id()) / req->name();
+      }
+    }
+    if (!st.ok()) {
+      struct Failed final : grpc::ServerWriteReactor<v1::AssetChunk> {
+        explicit Failed(grpc::Status s) { Finish(s); }
+        void OnDone() override { delete this; }
+      };
+      return new Failed(st);
+    }
+    return new FileSender(path);
+  }
+
+  grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx, const v1::ListWorkersRequest*, v1::ListWorkersResponse* resp) override {
+    std::lock_guard<std::mutex> lk(mu);
+    for (auto& [id, w] : workers) {
+      if (!w.alive()) continue;
+      auto* ws = resp->add_workers();
+      ws->set_name(w.name);
+      ws->set_capacity(w.capacity);
+      ws->set_leaving(w.leaving);
+      ws->set_shards(uint32_t(runAssignment ? std::count(runAssignment->begin(), runAssignment->end(), id) : 0));
+    }
+    auto* reactor = ctx->DefaultReactor();
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+
+  // ------------------------------------------------------------------ worker service
+
+  grpc::ServerBidiReactor<v1::WorkerMessage, v1::ServerMessage>* Connect(grpc::CallbackServerContext*) override {
+    return new WorkerStream(this);
+  }
+
+  grpc::ServerWriteReactor<v1::AssetChunk>* FetchAsset(grpc::CallbackServerContext*, const v1::FetchAssetRequest* req) override {
+    if (!assets.has(req->sha256())) {
+      struct Failed final : grpc::ServerWriteReactor<v1::AssetChunk> {
+        explicit Failed(const std::string& h) { Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "no asset " + h)); }
+        void OnDone() override { delete this; }
+      };
+      return new Failed(req->sha256());
+    }
+    return new FileSender(assets.path(req->sha256()));
+  }
+
+  void onWorkerMessage(WorkerStream* ws, const v1::WorkerMessage& m) {
+    std::lock_guard<std::mutex> lk(mu);
+    WorkerEntry* w = nullptr;
+    for (auto& [id, e] : workers)
+      if (e.stream == ws) w = &e;
+    if (m.has_hello()) {
+      if (w) return;
+      WorkerEntry e;
+      e.id = nextWorker++;
+      e.name = m.hello().name().empty() ? "worker-" + std::to_string(e.id) : m.hello().name();
+      e.capacity = std::max<uint32_t>(1, m.hello().capacity());
+      e.stream = ws;
+      e.lastSeen = Clock::now();
+      workers[e.id] = e;
+      spdlog::info("worker {} ({}, {} threads) connected", e.id, e.name, e.capacity);
+      v1::ServerMessage welcome;
+      welcome.set_welcome(std::to_string(e.id));
+      ws->send(std::move(welcome));
+      cv.notify_all();
+      return;
+    }
+    if (!w) return;  // nothing before hello
+    w->lastSeen = Clock::now();
+    if (m.has_leaving()) {
+      w->leaving = true;
+      spdlog::info("worker {} ({}) is leaving", w->id, w->name);
+    } else if (m.has_result()) {
+      auto it = leases.find(m.result().task_id());
+      // Exactly once: only the current lease's worker can complete it, and only once.
+      if (it == leases.end() || it->second.worker != w->id || it->second.done) {
+        spdlog::debug("worker {}: stale result for task {} ignored", w->id, m.result().task_id());
+        return;
+      }
+      it->second.result = m.result();
+      it->second.done = true;
+    }
+    cv.notify_all();
+  }
+
+  void workerGone(WorkerStream* ws) {
+    std::lock_guard<std::mutex> lk(mu);
+    for (auto& [id, e] : workers)
+      if (e.stream == ws) {
+        e.stream = nullptr;
+        spdlog::warn("worker {} ({}) disconnected", e.id, e.name);
+      }
+    cv.notify_all();
+  }
+
+  void removeWatcher(const std::string& job, Watcher* w) {
+    std::lock_guard<std::mutex> lk(mu);
+    auto it = jobTable.find(job);
+    if (it != jobTable.end()) it->second.watchers.erase(w);
+  }
+
+  // ------------------------------------------------------------------ jobs
+
+  static grpc::Status notFound(const std::string& id) {
+    return grpc::Status(grpc::StatusCode::NOT_FOUND, "no job '" + id + "'");
+  }
+
+  v1::JobStatus status(const JobEntry& j) const {
+    v1::JobStatus s;
+    s.set_job_id(j.rec.job_id());
+    s.set_name(j.rec.spec().name());
+    s.set_state(j.rec.state());
+    s.set_reason(j.rec.reason());
+    s.set_step(j.step);
+    s.set_steps(j.steps);
+    s.set_loss(j.loss);
+    s.set_param_error(j.paramError);
+    s.set_seconds(j.seconds);
+    s.set_method(j.method);
+    *s.mutable_results() = j.rec.results();
+    s.set_last_sequence(j.nextSeq - 1);
+    s.set_submitted_unix(j.rec.submitted_unix());
+    return s;
+  }
+
+  void postControl(std::function<void()> fn) {
+    {
+      std::lock_guard<std::mutex> lk(mu);
+      control.push_back(std::move(fn));
+    }
+    controlCv.notify_one();
+  }
+
+  void controlLoop() {
+    for (;;) {
+      std::function<void()> fn;
+      {
+        std::unique_lock<std::mutex> lk(mu);
+        controlCv.wait(lk, [&] { return stopping || !control.empty(); });
+        if (control.empty()) return;
+        fn = std::move(control.front());
+        control.pop_front();
+      }
+      fn();
+    }
+  }
+
+  AssetResolver resolver() {
+    AssetResolver r;
+    r.byHash = [this](const std::string& h) -> std::filesystem::path {
+      if (!assets.has(h)) throw InputError("asset " + h + " was not uploaded");
+      return assets.path(h);
+    };
+    return r;
+  }
+
+  grpc::Status submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
+    v1::JobSpec spec = req.spec();
+    // A server job may only name built-in scenes and uploaded assets: paths on the client's disk
+    // mean nothing here (`invr submit` uploads them and rewrites the references).
+    std::optional<grpc::Status> bad;
+    forEachAssetRef(spec, [&](v1::AssetRef& ref, const std::string& field) {
+      if (bad) return;
+      if (ref.has_path())
+        bad = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                           field + ".path: a job on a server references assets by sha256 (upload '" + ref.path() + "' first)");
+      else if (!AssetStore::validHash(ref.sha256()))
+        bad = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, field + ".sha256: '" + ref.sha256() + "' is not a SHA-256 hex digest");
+      else if (!assets.has(ref.sha256()))
+        bad = grpc::Status(grpc::StatusCode::NOT_FOUND, field + ".sha256: asset " + ref.sha256() + " was not uploaded");
+    });
+    if (bad) return *bad;
+    if (!spec.has_optimization() || spec.optimization().parameters_size() == 0)
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters: a job needs at least one parameter to recover");
+    try {
+      validateRenderSettings(spec.render());
+      buildProblem(spec, resolver());
+    } catch (const InputError& e) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+    } catch (const std::exception& e) {
+      return grpc::Status(grpc::StatusCode::INTERNAL, e.what());
+    }
+    std::lock_guard<std::mutex> lk(mu);
+    if (!req.request_id().empty()) {  // a concurrent retry may have won the race
+      auto it = byRequestId.find(req.request_id());
+      if (it != byRequestId.end()) {
+        resp.set_job_id(it->second);
+        resp.set_existing(true);
+        return grpc::Status::OK;
+      }
+    }
+    if (int(queue.size()) >= opt.maxQueued)
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "queue full (limit " + std::to_string(opt.maxQueued) + "); retry later");
+    JobEntry j;
+    j.rec.set_job_id(jobs.newJobId());
+    j.rec.set_request_id(req.request_id());
+    *j.rec.mutable_spec() = spec;
+    j.rec.set_state(v1::QUEUED);
+    j.rec.set_submitted_unix(unixMs() / 1000);
+    try {
+      jobs.saveRecord(j.rec);
+    } catch (const std::exception& e) {
+      return grpc::Status(grpc::StatusCode::INTERNAL, e.what());
+    }
+    std::string id = j.rec.job_id();
+    if (!req.request_id().empty()) byRequestId[req.request_id()] = id;
+    auto& entry = jobTable[id] = std::move(j);
+    queue.push_back(id);
+    logEventLocked(entry, "queued (" + std::to_string(queue.size()) + " in queue)");
+    spdlog::info("[{}] submitted: {}", id, spec.name());
+    resp.set_job_id(id);
+    cv.notify_all();
+    return grpc::Status::OK;
+  }
+
+  void publishLocked(JobEntry& j, v1::ProgressEvent ev) {
+    ev.set_sequence(j.nextSeq++);
+    ev.set_unix_ms(unixMs());
+    jobs.appendEvent(j.rec.job_id(), ev);
+    for (Watcher* w : j.watchers) w->push(ev);
+    j.events.push_back(std::move(ev));
+  }
+
+  void logEventLocked(JobEntry& j, const std::string& message) {
+    v1::ProgressEvent ev;
+    ev.set_message(message);
+    spdlog::info("[{} step {}] {}", j.rec.job_id(), j.step, message);
+    publishLocked(j, std::move(ev));
+  }
+
+  void endJobLocked(JobEntry& j, v1::JobState state) {
+    j.rec.set_state(state);
+    try {
+      jobs.saveRecord(j.rec);
+    } catch (const std::exception& e) {
+      spdlog::error("[{}] cannot save its record: {}", j.rec.job_id(), e.what());
+    }
+    spdlog::info("[{} step {}] {}{}{}", j.rec.job_id(), j.step, stateName(state), j.rec.reason().empty() ? "" : ": ", j.rec.reason());
+    v1::ProgressEvent ev;
+    *ev.mutable_final() = status(j);
+    publishLocked(j, std::move(ev));
+    // Every watcher gets the final event; release workers' sessions for this job.
+    for (auto& [id, w] : workers)
+      if (w.stream) {
+        v1::ServerMessage m;
+        m.set_release_job(j.rec.job_id());
+        w.stream->send(std::move(m));
+      }
+    cv.notify_all();
+  }
+
+  void logEvent(const std::string& job, const std::string& message) {
+    std::lock_guard<std::mutex> lk(mu);
+    logEventLocked(jobTable.at(job), message);
+  }
+
+  // ------------------------------------------------------------------ scheduling
+
+  // A live worker for the shard: its sticky one if still there, else the least loaded.
+  uint64_t pickWorkerLocked(Run& run, JobEntry& job, size_t shard) {
+    uint64_t w = run.assignment[shard];
+    if (w && workers.count(w) && workers[w].alive()) return w;
+    if (w) {  // its worker vanished between steps
+      logEventLocked(job, "shard " + std::to_string(shard) + ": worker " + workers[w].name + " lost; reassigning");
+      run.assignment[shard] = 0;
+    }
+    uint64_t best = 0;
+    size_t bestLoad = SIZE_MAX;
+    for (auto& [id, e] : workers) {
+      if (!e.alive() || e.leaving) continue;
+      size_t load = size_t(std::count(run.assignment.begin(), run.assignment.end(), id));
+      if (load < bestLoad) best = id, bestLoad = load;
+    }
+    if (best) {
+      run.assignment[shard] = best;
+      run.fresh[shard] = true;
+      if (w) logEventLocked(job, "shard " + std::to_string(shard) + " moved to worker " + workers[best].name + " (rebuilding its state)");
+    }
+    return best;
+  }
+
+  void checkWorkersLocked() {
+    auto now = Clock::now();
+    for (auto& [id, e] : workers)
+      if (e.alive() && std::chrono::duration<double>(now - e.lastSeen).count() > opt.heartbeatTimeoutSeconds) {
+        spdlog::warn("worker {} ({}) silent for {:.0f} s: presumed gone", id, e.name, opt.heartbeatTimeoutSeconds);
+        WorkerStream* ws = e.stream;
+        e.stream = nullptr;
+        ws->close();
+      }
+  }
+
+  // Sends each shard's task to its worker and waits for every result, reassigning leases whose
+  // worker vanished or whose deadline passed. Returns results in shard order.
+  std::vector<std::optional<v1::TaskResult>> dispatch(Run& run, std::vector<std::optional<v1::Task>>& tasks) {
+    size_t n = tasks.size();
+    std::vector<std::optional<v1::TaskResult>> results(n);
+    std::vector<uint64_t> leaseOf(n, 0);
+    std::fill(run.attempts.begin(), run.attempts.end(), 0);
+    std::unique_lock<std::mutex> lk(mu);
+    JobEntry& job = jobTable.at(run.id);
+    auto dropLease = [&](size_t s) {
+      leases.erase(leaseOf[s]);
+      leaseOf[s] = 0;
+    };
+    auto retry = [&](size_t s, const std::string& why) {
+      logEventLocked(job, "shard " + std::to_string(s) + ": " + why + "; reassigning");
+      run.assignment[s] = 0;
+      dropLease(s);
+      if (++run.attempts[s] >= opt.maxAttempts)
+        throw JobFailed{"shard " + std::to_string(s) + " failed " + std::to_string(run.attempts[s]) + " times (last: " + why + ")"};
+    };
+    try {
+      for (;;) {
+        if (stopping) throw JobCancelled{};
+        if (job.cancelRequested) throw JobCancelled{};
+        checkWorkersLocked();
+        bool waiting = false;
+        for (size_t s = 0; s < n; ++s) {
+          if (!tasks[s] || results[s] || leaseOf[s]) continue;
+          uint64_t w = pickWorkerLocked(run, job, s);
+          if (!w) {
+            waiting = true;
+            continue;
+          }
+          v1::Task t = *tasks[s];
+          t.set_task_id(nextTask++);
+          if (run.fresh[s]) t.set_rebuild_burn_in(run.rebuildBurnIn);
+          Lease l;
+          l.taskId = t.task_id();
+          l.shard = s;
+          l.worker = w;
+          l.deadline = Clock::now() + std::chrono::milliseconds(int64_t(opt.leaseSeconds * 1000));
+          leases[l.taskId] = l;
+          leaseOf[s] = l.taskId;
+          v1::ServerMessage m;
+          *m.mutable_task() = std::move(t);
+          workers[w].stream->send(std::move(m));
+        }
+        if (waiting && !run.announcedWaiting) logEventLocked(job, "waiting for a worker to connect");
+        run.announcedWaiting = waiting;
+        bool all = true;
+        for (size_t s = 0; s < n; ++s) {
+          if (!tasks[s] || results[s]) continue;
+          all = false;
+          if (!leaseOf[s]) continue;
+          Lease& l = leases[leaseOf[s]];
+          const WorkerEntry& w = workers[l.worker];
+          if (l.done) {
+            if (l.result.error().empty()) {
+              results[s] = std::move(l.result);
+              run.fresh[s] = false;
+              dropLease(s);
+            } else if (l.result.input_error()) {
+              throw JobFailed{l.result.error()};
+            } else {
+              retry(s, "worker " + w.name + " failed: " + l.result.error());
+            }
+          } else if (!w.alive()) {
+            retry(s, "worker " + w.name + " lost");
+          } else if (Clock::now() > l.deadline) {
+            retry(s, "lease on worker " + w.name + " expired after " + std::to_string(int(opt.leaseSeconds)) + " s");
+          }
+        }
+        if (all) return results;
+        cv.wait_for(lk, std::chrono::milliseconds(100));
+      }
+    } catch (...) {
+      for (size_t s = 0; s < n; ++s)
+        if (leaseOf[s]) leases.erase(leaseOf[s]);
+      throw;
+    }
+  }
+
+  v1::Task baseTask(const Run& run, const v1::JobSpec& spec, size_t shard, const std::vector<float>& theta) {
+    v1::Task t;
+    t.set_job_id(run.id);
+    t.set_shard(uint32_t(shard));
+    *t.mutable_spec() = spec;
+    t.mutable_theta()->Assign(theta.begin(), theta.end());
+    return t;
+  }
+
+  void runnerLoop() {
+    for (;;) {
+      std::string id;
+      {
+        std::unique_lock<std::mutex> lk(mu);
+        cv.wait(lk, [&] { return stopping || !queue.empty(); });
+        if (stopping) return;
+        id = queue.front();
+        queue.pop_front();
+      }
+      runJob(id);
+    }
+  }
+
+  void runJob(const std::string& id) {
+    v1::JobSpec spec;
+    {
+      std::lock_guard<std::mutex> lk(mu);
+      JobEntry& j = jobTable.at(id);
+      spec = j.rec.spec();
+      j.rec.set_state(v1::RUNNING);
+      jobs.saveRecord(j.rec);
+    }
+    Problem p;
+    std::vector<float> theta;
+    v1::Checkpoint ck;
+    bool haveCheckpoint = false;
+    std::vector<std::string> csv;
+    std::string method;
+    try {
+      p = buildProblem(spec, resolver());
+      method = gradientMethodName(p.gradient.method);
+      auto saved = jobs.loadCheckpoint(id);
+      haveCheckpoint = saved.has_value();
+      OptimizerState state;
+      uint64_t counter = 0, step = 0;
+      double secondsBefore = 0;
+      if (saved) {
+        ck = *saved;
+        theta.assign(ck.theta().begin(), ck.theta().end());
+        state.m.assign(ck.adam_m().begin(), ck.adam_m().end());
+        state.v.assign(ck.adam_v().begin(), ck.adam_v().end());
+        state.step = ck.optimizer_step();
+        counter = ck.counter();
+        step = ck.step();
+        secondsBefore = ck.seconds();
+      } else {
+        theta = p.initial;
+      }
+      if (theta.size() != p.params.size()) throw JobFailed{"checkpoint does not match the job's parameters"};
+      Run run;
+      run.id = id;
+      run.assignment.assign(p.shards.size(), 0);
+      run.attempts.assign(p.shards.size(), 0);
+      run.fresh.assign(p.shards.size(), true);
+      // A worker that takes over a shard mid-job rebuilds its reservoirs with render-only steps.
+      {
+        std::lock_guard<std::mutex> lk(mu);
+        runAssignment = &run.assignment;
+      }
+      struct Unpublish {
+        Impl* s;
+        ~Unpublish() {
+          std::lock_guard<std::mutex> lk(s->mu);
+          s->runAssignment = nullptr;
+        }
+      } unpublish{this};
+      run.rebuildBurnIn = p.gradient.method == GradientMethod::Restir ? uint32_t(std::max(p.burnIn, 1)) : 0;
+      {
+        std::lock_guard<std::mutex> lk(mu);
+        JobEntry& j = jobTable.at(id);
+        j.steps = uint64_t(p.steps);
+        j.step = step;
+        j.method = method;
+        std::ostringstream msg;
+        if (saved)
+          msg << "resumed from checkpoint at step " << step << "/" << p.steps;
+        else
+          msg << "started: " << p.params.size() << " parameter values, " << p.steps << " steps, method " << method << ", "
+              << p.scene->cameras.size() << " views in " << p.shards.size() << " shards";
+        logEventLocked(j, msg.str());
+      }
+      const uint64_t total = uint64_t(p.burnIn) + uint64_t(p.steps);
+      auto runStart = Clock::now();
+      uint64_t stepsThisRun = 0;
+      Clock::time_point firstStepDone = runStart;
+      while (counter < total) {
+        Evaluation e = evaluationAt(p, counter);
+        std::vector<std::optional<v1::Task>> tasks(p.shards.size());
+        for (size_t s = 0; s < p.shards.size(); ++s) {
+          GradientRequest r = shardRequest(p, e, s);
+          if (r.views.empty()) continue;
+          v1::Task t = baseTask(run, spec, s, theta);
+          t.set_kind(v1::Task::GRADIENT);
+          t.mutable_views()->Assign(r.views.begin(), r.views.end());
+          t.set_batch_views(uint32_t(r.batchViews));
+          t.set_all_shard_views(r.allSessionViews);
+          t.set_counter(counter);
+          t.set_render_only(e.renderOnly);
+          tasks[s] = std::move(t);
+        }
+        auto t0 = Clock::now();
+        auto results = dispatch(run, tasks);
+        double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        ++counter;
+        if (e.renderOnly) {
+          if (counter == 1 || counter == uint64_t(p.burnIn))
+            logEvent(id, "burn-in " + std::to_string(counter) + "/" + std::to_string(p.burnIn) + " (render-only steps that fill the reservoirs)");
+          continue;
+        }
+        auto u0 = Clock::now();
+        // Same arithmetic, same order as runLocally: bit-identical parameters.
+        GradientResult sum;
+        v1::StepProgress sp;
+        double slowest = 0;
+        for (auto& r : results) {
+          if (!r) continue;
+          GradientResult g;
+          g.gradient.assign(r->gradient().begin(), r->gradient().end());
+          g.stats.loss = r->loss();
+          g.stats.nonFiniteSamples = r->non_finite();
+          accumulateShard(sum, g);
+          sp.set_render_seconds(sp.render_seconds() + r->seconds_primal());
+          sp.set_derivative_seconds(sp.derivative_seconds() + r->seconds_derivative());
+          sp.set_reservoir_seconds(sp.reservoir_seconds() + r->seconds_reservoir());
+          sp.set_reservoirs(sp.reservoirs() + r->reservoirs());
+          sp.set_mean_m(std::max(sp.mean_m(), r->mean_m()));
+          sp.set_mean_neighbours(std::max(sp.mean_neighbours(), r->mean_neighbours()));
+          slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session());
+        }
+        ++step;
+        checkDivergence(p, step, sum.stats.loss, theta);
+        optimizerStep(p.optimizer, p.params, sum.gradient, theta, state);
+        try {
+          checkDivergence(p, step, sum.stats.loss, theta);
+        } catch (const InputError& err) {
+          throw JobFailed{std::string(err.what()) + "; the last good checkpoint (step " + std::to_string(step - 1) + ") is kept"};
+        }
+        ++stepsThisRun;
+        // Rates from the steps after this run's first (which includes building sessions and targets).
+        if (stepsThisRun == 1) firstStepDone = Clock::now();
+        double seconds = secondsBefore + std::chrono::duration<double>(Clock::now() - runStart).count();
+        ck.set_step(step);
+        ck.set_counter(counter);
+        ck.mutable_theta()->Assign(theta.begin(), theta.end());
+        ck.mutable_adam_m()->Assign(state.m.begin(), state.m.end());
+        ck.mutable_adam_v()->Assign(state.v.begin(), state.v.end());
+        ck.set_optimizer_step(state.step);
+        ck.set_seconds(seconds);
+        jobs.saveCheckpoint(id, ck);  // before the progress event: the log never runs ahead of it
+        haveCheckpoint = true;
+        double perStep = stepsThisRun == 1 ? wall : std::chrono::duration<double>(Clock::now() - firstStepDone).count() / double(stepsThisRun - 1);
+        sp.set_step(step);
+        sp.set_steps(uint64_t(p.steps));
+        sp.set_loss(sum.stats.loss);
+        sp.set_param_error(p.groundTruthKnown() ? parameterError(p, theta) : -1.0);
+        sp.set_seconds(seconds);
+        sp.set_steps_per_second(1.0 / perStep);
+        sp.set_eta_seconds(perStep * double(uint64_t(p.steps) - step));
+        sp.set_non_finite(sum.stats.nonFiniteSamples);
+        sp.set_transport_seconds(std::max(0.0, wall - slowest));
+        sp.set_update_seconds(std::chrono::duration<double>(Clock::now() - u0).count());
+        csv.push_back(method + "," + std::to_string(step) + "," + std::to_string(seconds) + "," + fmtDouble(sp.loss()) + "," +
+                      fmtDouble(sp.param_error()));
+        std::lock_guard<std::mutex> lk(mu);
+        JobEntry& j = jobTable.at(id);
+        j.step = step;
+        j.loss = sp.loss();
+        j.paramError = sp.param_error();
+        j.seconds = seconds;
+        v1::ProgressEvent ev;
+        *ev.mutable_step() = sp;
+        publishLocked(j, std::move(ev));
+        spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, step, sp.loss(), sp.param_error(),
+                     sp.steps_per_second());
+      }
+      writeResults(run, p, spec, theta, csv);
+      std::lock_guard<std::mutex> lk(mu);
+      endJobLocked(jobTable.at(id), v1::SUCCEEDED);
+    } catch (const JobCancelled&) {
+      std::lock_guard<std::mutex> lk(mu);
+      JobEntry& j = jobTable.at(id);
+      if (stopping && !j.cancelRequested) return;  // server shutting down: the job resumes on restart
+      j.rec.set_reason("cancelled by request");
+      endJobLocked(j, v1::CANCELLED);
+    } catch (const JobFailed& f) {
+      failJob(id, f.reason, p, haveCheckpoint ? &ck : nullptr);
+    } catch (const InputError& e) {
+      failJob(id, e.what(), p, haveCheckpoint ? &ck : nullptr);
+    } catch (const std::exception& e) {
+      failJob(id, std::string("internal error: ") + e.what(), p, haveCheckpoint ? &ck : nullptr);
+    }
+  }
+
+  static std::string fmtDouble(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.9g", v);
+    return b;
+  }
+
+  void failJob(const std::string& id, const std::string& reason, const Problem& p, const v1::Checkpoint* ck) {
+    std::vector<std::string> files;
+    // The last good parameters stay fetchable, next to the log.
+    if (ck && p.params.size() == size_t(ck->theta_size())) {
+      try {
+        files = writeParameters(jobs.resultsDir(id), p.params, std::vector<float>(ck->theta().begin(), ck->theta().end()));
+      } catch (const std::exception&) {
+      }
+    }
+    std::lock_guard<std::mutex> lk(mu);
+    JobEntry& j = jobTable.at(id);
+    copyLogLocked(id, files);
+    j.rec.clear_results();
+    for (auto& f : files) j.rec.add_results(f);
+    j.rec.set_reason(reason);
+    endJobLocked(j, v1::FAILED);
+  }
+
+  void copyLogLocked(const std::string& id, std::vector<std::string>& files) {
+    std::error_code ec;
+    std::filesystem::copy_file(jobs.jobDir(id) / "progress.jsonl", jobs.resultsDir(id) / "progress.jsonl",
+                               std::filesystem::copy_options::overwrite_existing, ec);
+    if (!ec) files.push_back("progress.jsonl");
+  }
+
+  void writeResults(Run& run, Problem& p, const v1::JobSpec& spec, const std::vector<float>& theta, const std::vector<std::string>& csv) {
+    auto dir = jobs.resultsDir(run.id);
+    std::filesystem::create_directories(dir);
+    std::vector<std::string> files = writeParameters(dir, p.params, theta);
+    {
+      // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
+      std::ofstream out(dir / "convergence.csv");
+      out << kConvergenceCsvHeader << "\n";
+      std::vector<v1::ProgressEvent> evs = jobs.loadEvents(run.id);
+      std::map<uint64_t, std::string> rows;
+      for (const auto& e : evs)
+        if (e.has_step())
+          rows[e.step().step()] = gradientMethodName(p.gradient.method) + std::string(",") + std::to_string(e.step().step()) + "," +
+                                  std::to_string(e.step().seconds()) + "," + fmtDouble(e.step().loss()) + "," + fmtDouble(e.step().param_error());
+      for (auto& [k, r] : rows) out << r << "\n";
+      (void)csv;
+      files.push_back("convergence.csv");
+    }
+    // Final renders (and the targets beside them) from the workers.
+    logEvent(run.id, "rendering final images");
+    std::vector<std::optional<v1::Task>> tasks(p.shards.size());
+    for (size_t s = 0; s < p.shards.size(); ++s) {
+      v1::Task t = baseTask(run, spec, s, theta);
+      t.set_kind(v1::Task::FINAL_RENDER);
+      t.set_final_spp(opt.finalSpp);
+      for (int v : p.shards[s])
+        if (v < opt.finalViews) t.add_views(v);
+      if (t.views_size() > 0) tasks[s] = std::move(t);
+    }
+    auto results = dispatch(run, tasks);
+    for (size_t s = 0; s < results.size(); ++s) {
+      if (!results[s]) continue;
+      const auto& r = *results[s];
+      int nv = tasks[s]->views_size();
+      for (int k = 0; k < r.renders_size() && k < 2 * nv; ++k) {
+        const v1::FloatImage& fi = r.renders(k);
+        Image im(fi.width(), fi.height(), fi.channels());
+        if (size_t(fi.pixels_size()) != im.data().size()) continue;
+        std::copy(fi.pixels().begin(), fi.pixels().end(), im.data().begin());
+        std::string stem = (k < nv ? "final_view" : "target_view") + std::to_string(tasks[s]->views(k % nv));
+        for (const char* ext : {".png", ".exr"}) {
+          writeImage(dir / (stem + ext), im);
+          files.push_back(stem + ext);
+        }
+      }
+    }
+    std::lock_guard<std::mutex> lk(mu);
+    JobEntry& j = jobTable.at(run.id);
+    copyLogLocked(run.id, files);
+    j.rec.clear_results();
+    for (auto& f : files) j.rec.add_results(f);
+  }
+
+  void load() {
+    std::lock_guard<std::mutex> lk(mu);
+    for (auto& rec : jobs.loadAll()) {
+      JobEntry j;
+      j.rec = rec;
+      j.events = jobs.loadEvents(rec.job_id());
+      j.nextSeq = j.events.empty() ? 1 : j.events.back().sequence() + 1;
+      for (const auto& e : j.events)
+        if (e.has_step()) {
+          j.step = e.step().step();
+          j.steps = e.step().steps();
+          j.loss = e.step().loss();
+          j.paramError = e.step().param_error();
+          j.seconds = e.step().seconds();
+        }
+      std::string id = rec.job_id();
+      if (!rec.request_id().empty()) byRequestId[rec.request_id()] = id;
+      bool unfinished = !finished(rec.state());
+      auto& entry = jobTable[id] = std::move(j);
+      if (unfinished) {
+        entry.rec.set_state(v1::QUEUED);
+        queue.push_back(id);
+        logEventLocked(entry, "server restarted; queued again");
+      }
+    }
+  }
+};
+
+Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+
+Server::~Server() { shutdown(); }
+
+int Server::start() {
+  impl_->load();
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder b;
+  int port = 0;
+  b.AddListeningPort(impl_->opt.address, grpc::InsecureServerCredentials(), &port);
+  b.SetMaxReceiveMessageSize(wire::kMaxMessageBytes);
+  b.SetMaxSendMessageSize(wire::kMaxMessageBytes);
+  b.RegisterService(static_cast<v1::InvrService::CallbackService*>(impl_.get()));
+  b.RegisterService(static_cast<v1::WorkerService::CallbackService*>(impl_.get()));
+  impl_->grpcServer = b.BuildAndStart();
+  if (!impl_->grpcServer || port == 0) throw std::runtime_error("cannot listen on " + impl_->opt.address);
+  impl_->controlThread = std::thread([this] { impl_->controlLoop(); });
+  impl_->runnerThread = std::thread([this] { impl_->runnerLoop(); });
+  spdlog::info("invr-server listening on port {} (store {})", port, impl_->opt.storeDir.string());
+  return port;
+}
+
+void Server::shutdown() {
+  if (!impl_ || !impl_->grpcServer) return;
+  {
+    std::lock_guard<std::mutex> lk(impl_->mu);
+    if (impl_->stopping) return;
+    impl_->stopping = true;
+    for (auto& [id, w] : impl_->workers)
+      if (w.stream) w.stream->close();
+    for (auto& [id, j] : impl_->jobTable)
+      for (auto* w : j.watchers) w->close(grpc::Status(grpc::StatusCode::UNAVAILABLE, "server shutting down"));
+  }
+  impl_->cv.notify_all();
+  impl_->controlCv.notify_all();
+  if (impl_->runnerThread.joinable()) impl_->runnerThread.join();
+  if (impl_->controlThread.joinable()) impl_->controlThread.join();
+  impl_->grpcServer->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+}
+
+void Server::wait() {
+  if (impl_->grpcServer) impl_->grpcServer->Wait();
+}
+
+}  // namespace invr::server

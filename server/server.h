@@ -1,0 +1,48 @@
+// invr-server: accepts optimisation jobs from clients, farms each step's shards of views to the
+// workers that dialled in (sticky, leased), applies the optimiser, checkpoints and reports progress.
+//
+// Threads: gRPC's callback threads only move messages and touch in-memory state; job validation
+// runs on a control thread and the step loop on the runner thread, so no rendering or disk-heavy
+// work ever happens inside a callback.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace invr::server {
+
+struct ServerOptions {
+  std::filesystem::path storeDir = "invr-store";
+  std::string address = "127.0.0.1:0";  // loopback unless told otherwise; port 0 picks one
+  int maxQueued = 16;                    // queued jobs beyond this: RESOURCE_EXHAUSTED
+  double leaseSeconds = 600;             // a task not answered by then is reassigned
+  double heartbeatTimeoutSeconds = 10;   // a silent worker is presumed gone
+  int maxAttempts = 3;                   // per shard and step, before the job fails
+  uint64_t maxAssetBytes = uint64_t(1) << 30;
+  int finalSpp = 64;                     // final renders written with the results
+  int finalViews = 4;                    // ... for the first this many views
+};
+
+class Server {
+ public:
+  explicit Server(ServerOptions options);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Loads the job store (unfinished jobs are queued again), starts listening; returns the port.
+  int start();
+  // Stops accepting calls, ends streams, joins threads. Unfinished jobs stay in the store.
+  void shutdown();
+  void wait();
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace invr::server

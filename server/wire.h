@@ -1,0 +1,24 @@
+// What client, server and worker agree on about the wire.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <memory>
+#include <string>
+
+namespace invr::wire {
+
+// Tasks carry the parameter vector and results carry images; gRPC's 4 MiB default would cap a job
+// at ~1M parameters, so the limit is raised on purpose on every channel and on the server.
+// Files (assets, results) always travel in chunks of kChunkBytes.
+inline constexpr int kMaxMessageBytes = 512 << 20;
+inline constexpr size_t kChunkBytes = 1 << 20;
+
+inline std::shared_ptr<grpc::Channel> channel(const std::string& address) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(kMaxMessageBytes);
+  args.SetMaxSendMessageSize(kMaxMessageBytes);
+  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+}
+
+}  // namespace invr::wire

@@ -1,0 +1,454 @@
+// Integration tests: real invr-server and invr-worker processes on loopback, ephemeral ports.
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <condition_variable>
+#include <mutex>
+#include <numeric>
+#include <thread>
+
+#include <grpcpp/generic/generic_stub.h>
+
+#include "core/diff/zoo_jobs.h"
+#include "core/optim/local_run.h"
+#include "invr/v1/service.grpc.pb.h"
+#include "server/wire.h"
+
+extern char** environ;
+
+namespace invr {
+namespace {
+
+namespace v1 = invr::v1;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+const fs::path kBin = INVR_BIN_DIR;
+
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
+  std::vector<std::string> a = args;
+  std::vector<char*> argv;
+  for (auto& s : a) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  posix_spawn_file_actions_adddup2(&fa, 1, 2);
+  pid_t pid = 0;
+  int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) throw std::runtime_error(std::string("spawn ") + args[0] + ": " + std::strerror(rc));
+  return pid;
+}
+
+void stopProcess(pid_t& pid, int sig = SIGTERM) {
+  if (pid <= 0) return;
+  kill(pid, sig);
+  waitpid(pid, nullptr, 0);
+  pid = 0;
+}
+
+// A temporary folder per test.
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() / ("invr-test-" + std::to_string(getpid()) + "-" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+class Cluster {
+ public:
+  explicit Cluster(fs::path dir) : dir_(std::move(dir)) {}
+  ~Cluster() {
+    for (auto& w : workers_) stopProcess(w, SIGKILL);
+    stopProcess(server_, SIGKILL);
+  }
+  // Starts the server on `port` (0: any) with the store in dir/store; returns its port.
+  int startServer(int port = 0, std::vector<std::string> extra = {}) {
+    fs::path portFile = dir_ / "port";
+    fs::remove(portFile);
+    std::vector<std::string> args = {(kBin / "invr-server").string(), "--store", (dir_ / "store").string(), "--address",
+                                     "127.0.0.1:" + std::to_string(port), "--port-file", portFile.string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    server_ = spawn(args, dir_ / "server.log");
+    for (int i = 0; i < 200 && !fs::exists(portFile); ++i) std::this_thread::sleep_for(50ms);
+    std::ifstream in(portFile);
+    in >> port_;
+    if (port_ <= 0) throw std::runtime_error("server did not start; see " + (dir_ / "server.log").string());
+    stub_ = v1::InvrService::NewStub(wire::channel(address()));
+    return port_;
+  }
+  pid_t startWorker(int threads = 1) {
+    pid_t p = spawn({(kBin / "invr-worker").string(), "--server", address(), "--threads", std::to_string(threads), "--name",
+                     "w" + std::to_string(workers_.size() + 1)},
+                    dir_ / ("worker" + std::to_string(workers_.size() + 1) + ".log"));
+    workers_.push_back(p);
+    // Shards stick to the workers present when a job starts: wait until this one is connected.
+    for (int i = 0; i < 400; ++i) {
+      grpc::ClientContext ctx;
+      v1::ListWorkersResponse r;
+      if (stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &r).ok() && r.workers_size() >= int(workers_.size())) break;
+      std::this_thread::sleep_for(25ms);
+    }
+    return p;
+  }
+  void killServer() { stopProcess(server_, SIGKILL); }
+  void killWorker(size_t i) { stopProcess(workers_.at(i), SIGKILL); }
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  v1::InvrService::Stub& stub() { return *stub_; }
+  fs::path store() const { return dir_ / "store"; }
+
+  grpc::Status submit(const v1::JobSpec& job, std::string* id, const std::string& requestId = "") {
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + 60s);
+    v1::SubmitJobRequest req;
+    req.set_request_id(requestId);
+    *req.mutable_spec() = job;
+    v1::SubmitJobResponse resp;
+    grpc::Status st = stub_->SubmitJob(&ctx, req, &resp);
+    if (id) *id = resp.job_id();
+    return st;
+  }
+  // Events from `from` until the final one (or until stopAfter returns true).
+  std::vector<v1::ProgressEvent> watch(const std::string& id, uint64_t from = 0,
+                                       const std::function<bool(const v1::ProgressEvent&)>& stopAfter = {}) {
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + 600s);
+    v1::WatchJobRequest req;
+    req.set_job_id(id);
+    req.set_from_sequence(from);
+    auto r = stub_->WatchJob(&ctx, req);
+    std::vector<v1::ProgressEvent> out;
+    v1::ProgressEvent e;
+    while (r->Read(&e)) {
+      out.push_back(e);
+      if (stopAfter && stopAfter(e)) {
+        ctx.TryCancel();
+        break;
+      }
+    }
+    r->Finish();
+    return out;
+  }
+  v1::JobStatus get(const std::string& id) {
+    grpc::ClientContext ctx;
+    v1::GetJobRequest req;
+    req.set_job_id(id);
+    v1::JobStatus s;
+    EXPECT_TRUE(stub_->GetJob(&ctx, req, &s).ok());
+    return s;
+  }
+  std::vector<float> checkpointTheta(const std::string& id) {
+    std::ifstream in(store() / "jobs" / id / "checkpoint.pb", std::ios::binary);
+    v1::Checkpoint ck;
+    EXPECT_TRUE(in && ck.ParseFromIstream(&in));
+    return {ck.theta().begin(), ck.theta().end()};
+  }
+
+ private:
+  fs::path dir_;
+  pid_t server_ = 0;
+  std::vector<pid_t> workers_;
+  int port_ = 0;
+  std::unique_ptr<v1::InvrService::Stub> stub_;
+};
+
+v1::JobSpec smallJob(const std::string& scene, int steps) {
+  v1::JobSpec j = zooJob(scene);
+  auto* o = j.mutable_optimization();
+  o->set_steps(steps);
+  o->set_target_spp(4);
+  o->mutable_restir()->set_burn_in(2);
+  return j;
+}
+
+std::vector<float> inProcess(const v1::JobSpec& job) {
+  Problem p = buildProblem(job);
+  return runLocally(p).theta;
+}
+
+std::vector<uint64_t> stepsOf(const std::vector<v1::ProgressEvent>& evs) {
+  std::vector<uint64_t> s;
+  for (const auto& e : evs)
+    if (e.has_step()) s.push_back(e.step().step());
+  return s;
+}
+
+bool anyMessage(const std::vector<v1::ProgressEvent>& evs, const std::string& needle) {
+  for (const auto& e : evs)
+    if (e.has_message() && e.message().find(needle) != std::string::npos) return true;
+  return false;
+}
+
+TEST(Service, SubmitCompleteFetchMatchesInProcessBitForBit) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  v1::JobSpec job = smallJob("cornell", 4);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_FALSE(evs.empty());
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_EQ(stepsOf(evs), (std::vector<uint64_t>{1, 2, 3, 4}));
+  for (size_t i = 1; i < evs.size(); ++i) EXPECT_EQ(evs[i].sequence(), evs[i - 1].sequence() + 1);
+
+  // Same job, same arithmetic in this process: identical bits.
+  EXPECT_EQ(c.checkpointTheta(id), inProcess(job));
+
+  // Every listed result can be fetched, in chunks.
+  v1::JobStatus st = c.get(id);
+  EXPECT_GE(st.results_size(), 5);
+  for (const auto& name : st.results()) {
+    grpc::ClientContext ctx;
+    v1::FetchResultRequest req;
+    req.set_job_id(id);
+    req.set_name(name);
+    auto r = c.stub().FetchResult(&ctx, req);
+    v1::AssetChunk ch;
+    size_t bytes = 0;
+    while (r->Read(&ch)) bytes += ch.data().size();
+    EXPECT_TRUE(r->Finish().ok()) << name;
+    EXPECT_GT(bytes, 0u) << name;
+  }
+
+  // Watching again from a sequence number resumes there.
+  uint64_t from = evs[evs.size() / 2].sequence();
+  auto again = c.watch(id, from);
+  ASSERT_FALSE(again.empty());
+  EXPECT_EQ(again.front().sequence(), from);
+  EXPECT_EQ(again.size(), evs.size() - evs.size() / 2);
+  EXPECT_TRUE(again.back().has_final());
+}
+
+TEST(Service, TwoWorkersGiveTheSameParametersAsOne) {
+  // Two shards, mini-batches of 4 of the 16 views: each shard sees a different subset per step.
+  v1::JobSpec job = smallJob("backlit", 3);
+  job.mutable_optimization()->set_shards(2);
+  job.mutable_optimization()->set_target_spp(2);
+  std::vector<float> theta[2];
+  for (int workers = 1; workers <= 2; ++workers) {
+    TempDir tmp;
+    Cluster c(tmp.path / std::to_string(workers));
+    fs::create_directories(tmp.path / std::to_string(workers));
+    c.startServer();
+    for (int w = 0; w < workers; ++w) c.startWorker(1);
+    std::string id;
+    ASSERT_TRUE(c.submit(job, &id).ok());
+    auto evs = c.watch(id);
+    ASSERT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+    theta[workers - 1] = c.checkpointTheta(id);
+  }
+  EXPECT_EQ(theta[0], theta[1]);
+  EXPECT_EQ(theta[0], inProcess(job));
+}
+
+TEST(Service, WorkerKilledMidJobTheJobCompletesAndNoStepRepeats) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(1);
+  c.startWorker(1);
+  v1::JobSpec job = smallJob("backlit", 12);
+  job.mutable_optimization()->set_shards(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto first = c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 3; });
+  c.killWorker(0);
+  auto rest = c.watch(id, first.back().sequence() + 1);
+  ASSERT_TRUE(rest.back().has_final());
+  EXPECT_EQ(rest.back().final().state(), v1::SUCCEEDED) << rest.back().final().reason();
+  first.insert(first.end(), rest.begin(), rest.end());
+  std::vector<uint64_t> expect(12);
+  std::iota(expect.begin(), expect.end(), 1);
+  EXPECT_EQ(stepsOf(first), expect);  // every step once, in order
+  std::string log;
+  for (const auto& e : first)
+    if (e.has_message()) log += e.message() + "\n";
+  EXPECT_TRUE(anyMessage(first, "lost")) << "progress should say a worker was lost:\n" << log;
+}
+
+TEST(Service, ServerKilledMidJobResumesFromItsCheckpoint) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  int port = c.startServer();
+  c.startWorker(2);
+  v1::JobSpec job = smallJob("cornell", 10);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 3; });
+  c.killServer();
+  c.startServer(port);  // same store, same address: the worker reconnects
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_EQ(evs.back().final().step(), 10u);
+  EXPECT_TRUE(anyMessage(evs, "resumed from checkpoint at step"));
+  // Step numbers after the resume continue from the checkpoint, each once.
+  std::vector<uint64_t> steps = stepsOf(evs);
+  ASSERT_FALSE(steps.empty());
+  EXPECT_EQ(steps.back(), 10u);
+}
+
+TEST(Service, CancelWhileRunningIsIdempotent) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(smallJob("cornell", 100000), &id).ok());
+  c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 2; });
+  for (int i = 0; i < 2; ++i) {
+    grpc::ClientContext ctx;
+    v1::CancelJobRequest req;
+    req.set_job_id(id);
+    v1::JobStatus s;
+    ASSERT_TRUE(c.stub().CancelJob(&ctx, req, &s).ok());
+  }
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::CANCELLED);
+  EXPECT_LT(evs.back().final().step(), 100000u);
+  EXPECT_EQ(c.get(id).state(), v1::CANCELLED);
+}
+
+TEST(Service, FullQueueIsResourceExhausted) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer(0, {"--max-queued", "1"});  // no workers: the first job runs (waiting), the next queues
+  std::string a, b;
+  ASSERT_TRUE(c.submit(smallJob("cornell", 5), &a).ok());
+  for (int i = 0; i < 100 && c.get(a).state() != v1::RUNNING; ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(c.submit(smallJob("cornell", 5), &b).ok());
+  EXPECT_EQ(c.get(b).state(), v1::QUEUED);
+  grpc::Status st = c.submit(smallJob("cornell", 5), nullptr);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(st.error_message().find("queue full"), std::string::npos) << st.error_message();
+}
+
+TEST(Service, BadInputIsRejectedWithTheFieldAndTheServerKeepsServing) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer(0, {"--max-asset-mb", "0.001"});
+  auto expectError = [&](v1::JobSpec job, grpc::StatusCode code, const std::string& needle) {
+    grpc::Status st = c.submit(job, nullptr);
+    EXPECT_EQ(st.error_code(), code) << needle << ": " << st.error_message();
+    EXPECT_NE(st.error_message().find(needle), std::string::npos) << st.error_message();
+  };
+  v1::JobSpec j = smallJob("cornell", 3);
+  j.mutable_optimization()->mutable_parameters(0)->set_name("materials/rouge/albedo");
+  expectError(j, grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters[0].name");
+  j = smallJob("cornell", 3);
+  j.mutable_optimization()->mutable_parameters(0)->set_initial(std::nan(""));
+  expectError(j, grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters[0].initial");
+  j = smallJob("cornell", 3);
+  j.mutable_optimization()->mutable_parameters(0)->set_lower(0.8);
+  j.mutable_optimization()->mutable_parameters(0)->set_upper(0.2);
+  expectError(j, grpc::StatusCode::INVALID_ARGUMENT, "bounds are inverted");
+  j = smallJob("cornell", 3);
+  j.mutable_optimization()->set_steps(0);
+  expectError(j, grpc::StatusCode::INVALID_ARGUMENT, "optimization.steps");
+  j = smallJob("cornell", 3);
+  j.mutable_optimization()->add_targets()->set_sha256(std::string(64, 'a'));
+  expectError(j, grpc::StatusCode::NOT_FOUND, "optimization.targets[0].sha256");
+  j = smallJob("cornell", 3);
+  j.mutable_optimization()->add_targets()->set_path("/home/me/target.exr");
+  expectError(j, grpc::StatusCode::INVALID_ARGUMENT, "optimization.targets[0].path");
+  j = smallJob("cornell", 3);
+  j.clear_optimization();
+  expectError(j, grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters");
+
+  // An upload over the server's limit (1 KiB here).
+  {
+    grpc::ClientContext ctx;
+    v1::AssetInfo info;
+    auto w = c.stub().UploadAsset(&ctx, &info);
+    v1::AssetChunk ch;
+    ch.set_data(std::string(4096, 'x'));
+    w->Write(ch);
+    w->WritesDone();
+    grpc::Status st = w->Finish();
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  }
+  // A small upload is stored under its SHA-256.
+  {
+    grpc::ClientContext ctx;
+    v1::AssetInfo info;
+    auto w = c.stub().UploadAsset(&ctx, &info);
+    v1::AssetChunk ch;
+    ch.set_data("abc");
+    w->Write(ch);
+    w->WritesDone();
+    ASSERT_TRUE(w->Finish().ok());
+    EXPECT_EQ(info.sha256(), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  }
+  // Unknown job ids.
+  {
+    grpc::ClientContext ctx;
+    v1::GetJobRequest req;
+    req.set_job_id("job-999999");
+    v1::JobStatus s;
+    EXPECT_EQ(c.stub().GetJob(&ctx, req, &s).error_code(), grpc::StatusCode::NOT_FOUND);
+  }
+  // Still serving; a retried submission with the same request id is the same job.
+  std::string a, b;
+  ASSERT_TRUE(c.submit(smallJob("cornell", 3), &a, "req-1").ok());
+  ASSERT_TRUE(c.submit(smallJob("cornell", 3), &b, "req-1").ok());
+  EXPECT_EQ(a, b);
+  grpc::ClientContext ctx;
+  v1::ListJobsResponse all;
+  ASSERT_TRUE(c.stub().ListJobs(&ctx, v1::ListJobsRequest(), &all).ok());
+  EXPECT_EQ(all.jobs_size(), 1);
+}
+
+TEST(Service, HealthAndReflectionAreServed) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  auto ch = wire::channel(c.address());
+  grpc::GenericStub generic(ch);
+  // grpc.health.v1.Health/Check with an empty request: SERVING is field 1 = 1.
+  grpc::ClientContext ctx;
+  grpc::ByteBuffer resp;
+  grpc::Slice empty("", 0);
+  grpc::ByteBuffer req(&empty, 1);
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status st;
+  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &req, &resp, [&](grpc::Status s) {
+    std::lock_guard<std::mutex> lk(m);
+    st = s;
+    done = true;
+    cv.notify_all();
+  });
+  std::unique_lock<std::mutex> lk(m);
+  cv.wait_for(lk, 10s, [&] { return done; });
+  ASSERT_TRUE(done);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  std::vector<grpc::Slice> slices;
+  ASSERT_TRUE(resp.Dump(&slices).ok());
+  std::string bytes;
+  for (auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  EXPECT_EQ(bytes, std::string("\x08\x01", 2));
+}
+
+}  // namespace
+}  // namespace invr

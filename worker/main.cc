@@ -1,0 +1,36 @@
+// invr-worker: evaluates gradient tasks for an invr-server (see worker.h).
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <iostream>
+
+#include "worker/worker.h"
+
+namespace {
+std::atomic<bool> gStop{false};
+void onSignal(int) { gStop = true; }
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"invr-worker: evaluates mini-batch gradients for an invr-server"};
+  invr::worker::WorkerOptions o;
+  app.add_option("--server", o.server, "server address host:port")->capture_default_str();
+  app.add_option("--threads", o.threads, "render threads (0: every core)")->capture_default_str()->check(CLI::NonNegativeNumber);
+  app.add_option("--name", o.name, "name shown in the server's log (default host:pid)");
+  app.add_option("--max-sessions", o.maxSessions, "per-job sessions kept (least recently used evicted)")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--cache", o.cacheDir, "folder for fetched assets (default: a temporary folder)");
+  app.add_option("--parent-pid", o.parentPid, "exit when this process exits");
+  CLI11_PARSE(app, argc, argv);
+  // SIGTERM: finish (and answer) the task in hand, then leave.
+  struct sigaction sa {};
+  sa.sa_handler = onSignal;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+  try {
+    return invr::worker::runWorker(o, gStop);
+  } catch (const std::exception& e) {
+    std::cerr << "invr-worker: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,25 @@
+// invr-worker: dials the server, keeps a session per (job, shard) — scene and BVH, targets,
+// gradient engine and ReSTIR reservoir chains — and evaluates the tasks it is sent.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <string>
+
+namespace invr::worker {
+
+struct WorkerOptions {
+  std::string server = "127.0.0.1:50051";
+  int threads = 0;               // 0: every core
+  std::string name;              // default host:pid
+  size_t maxSessions = 16;       // least recently used sessions beyond this are evicted
+  std::filesystem::path cacheDir;  // fetched assets; default: a temporary folder
+  int parentPid = 0;             // exit when this process is gone (local workers of `invr run`)
+  double heartbeatSeconds = 1.0;
+};
+
+// Serves until `stop` becomes true (SIGTERM): the task in hand is finished and answered first.
+// Reconnects with back-off when the server goes away. Returns the process exit code.
+int runWorker(const WorkerOptions& options, const std::atomic<bool>& stop);
+
+}  // namespace invr::worker
