@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 #include <thread>
@@ -27,14 +28,23 @@ namespace {
 
 struct BenchServiceArgs {
   int steps = 12;
+  int repeats = 2;
   bool json = false;
 };
 
-// Seconds per step after the first, from a list of (step, seconds since start).
+// Median seconds per step after the first (robust to another tenant's burst on a shared machine),
+// from a list of (step, seconds since start).
 double steadySecondsPerStep(const std::vector<std::pair<uint64_t, double>>& pts) {
-  if (pts.size() < 2) throw std::runtime_error("bench service: too few steps to time");
-  return (pts.back().second - pts.front().second) / double(pts.back().first - pts.front().first);
+  if (pts.size() < 3) throw std::runtime_error("bench service: too few steps to time");
+  std::vector<double> d;
+  for (size_t i = 1; i < pts.size(); ++i) d.push_back((pts[i].second - pts[i - 1].second) / double(pts[i].first - pts[i - 1].first));
+  std::nth_element(d.begin(), d.begin() + long(d.size() / 2), d.end());
+  return d[d.size() / 2];
 }
+
+// Time per step the service itself spends (transport + optimiser update + checkpoint), as a
+// fraction of the step, averaged over the steps after the first. Filled by serviceSecondsPerStep.
+double gAccountedOverhead = 0;
 
 double serviceSecondsPerStep(const v1::JobSpec& job, int workers, int threads) {
   auto store = std::filesystem::temp_directory_path() / ("invr-bench-" + std::to_string(getpid()));
@@ -50,9 +60,16 @@ double serviceSecondsPerStep(const v1::JobSpec& job, int workers, int threads) {
   auto r = c.submit(job, "");
   std::vector<std::pair<uint64_t, double>> pts;
   std::atomic<bool> never{false};
+  double own = 0, total = 0;
   auto final = c.watch(r.job_id(), 0, [&](const v1::ProgressEvent& e) {
-    if (e.has_step()) pts.emplace_back(e.step().step(), e.step().seconds());
+    if (!e.has_step()) return;
+    if (!pts.empty()) {
+      own += e.step().transport_seconds() + e.step().update_seconds();
+      total += e.step().seconds() - pts.back().second;
+    }
+    pts.emplace_back(e.step().step(), e.step().seconds());
   }, never);
+  gAccountedOverhead = own / std::max(total, 1e-9);
   local.stop();
   srv.shutdown();
   std::filesystem::remove_all(store);
@@ -69,14 +86,20 @@ double inProcessSecondsPerStep(const v1::JobSpec& job, int threads) {
 }
 
 void run(const BenchServiceArgs& a) {
-  spdlog::set_level(spdlog::level::warn);
+  spdlog::set_level(spdlog::level::err);
   int cores = int(std::max(1u, std::thread::hardware_concurrency()));
   // Overhead: cornell's built-in job, short targets (they are not timed).
   v1::JobSpec one = zooJob("cornell");
   one.mutable_optimization()->set_steps(a.steps);
   one.mutable_optimization()->set_target_spp(16);
-  double inproc = inProcessSecondsPerStep(one, cores);
-  double service = serviceSecondsPerStep(one, 1, cores);
+  // Interleaved, best of `repeats` each: the machine is shared, and drift between two single
+  // runs is larger than the overhead being measured.
+  double inproc = 1e30, service = 1e30, accounted = 1e30;
+  for (int r = 0; r < a.repeats; ++r) {
+    inproc = std::min(inproc, inProcessSecondsPerStep(one, cores));
+    service = std::min(service, serviceSecondsPerStep(one, 1, cores));
+    accounted = std::min(accounted, gAccountedOverhead);
+  }
   double overhead = service / inproc - 1.0;
   std::cerr << "overhead: cornell, " << a.steps << " steps: in process " << inproc * 1e3 << " ms/step, service with 1 worker ("
             << cores << " threads) " << service * 1e3 << " ms/step\n";
@@ -86,13 +109,19 @@ void run(const BenchServiceArgs& a) {
   many.mutable_optimization()->set_target_spp(4);
   many.mutable_optimization()->set_views_per_step(16);
   many.mutable_optimization()->set_shards(2);
-  double w1 = serviceSecondsPerStep(many, 1, 1);
-  double w2 = serviceSecondsPerStep(many, 2, 1);
+  double w1 = 1e30, w2 = 1e30;
+  for (int r = 0; r < a.repeats; ++r) {
+    w1 = std::min(w1, serviceSecondsPerStep(many, 1, 1));
+    w2 = std::min(w2, serviceSecondsPerStep(many, 2, 1));
+  }
   double speedup = w1 / w2;
   std::cerr << "scaling: backlit, 16 views in 2 shards: 1 worker " << 1.0 / w1 << " steps/s, 2 workers " << 1.0 / w2 << " steps/s\n";
   BenchReport rep("service");
   rep.number("overhead_one_worker", overhead);
   rep.number("speedup_two_workers", speedup);
+  // The service's own share of each step by its clocks: transport (step wall time minus the
+  // slowest worker's compute) plus the optimiser update and checkpoint.
+  rep.number("service_time_fraction", accounted);
   rep.number("inprocess_seconds_per_step", inproc, "s");
   rep.number("service_seconds_per_step", service, "s");
   rep.number("one_worker_steps_per_second", 1.0 / w1);
@@ -106,6 +135,7 @@ void addBenchServiceCommand(CLI::App& bench, int& exitCode) {
   auto a = std::make_shared<BenchServiceArgs>();
   auto* c = bench.add_subcommand("service", "Service overhead with one worker and speed-up with two (targets: <= 0.05, >= 1.6)");
   c->add_option("--steps", a->steps, "steps per timed job")->capture_default_str()->check(CLI::Range(3, 10000));
+  c->add_option("--repeats", a->repeats, "interleaved repetitions (best of)")->capture_default_str()->check(CLI::Range(1, 100));
   c->add_flag("--json", a->json, "print the figures as JSON");
   c->callback([a, &exitCode] {
     run(*a);

@@ -1,4 +1,5 @@
 // invr: the command-line client.
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -9,6 +10,7 @@
 #include "core/error.h"
 
 int main(int argc, char** argv) {
+  spdlog::set_default_logger(spdlog::stderr_color_mt("invr"));  // stdout is for results (and --json)
   CLI::App app{"invr: physics-based inverse rendering"};
   app.require_subcommand(1);
   int exitCode = invr::exit_code::kOk;

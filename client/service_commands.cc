@@ -36,7 +36,8 @@ namespace v1 = invr::v1;
 namespace {
 
 // Ctrl-C: a waiting thread turns SIGINT into a flag (gRPC calls are cancelled from threads, never
-// from a signal handler).
+// from a signal handler). Call it before any gRPC object exists, so every thread gRPC starts
+// inherits the blocked mask.
 std::atomic<bool>& interruptFlag() {
   static std::atomic<bool> flag{false};
   static std::once_flag once;
@@ -46,9 +47,12 @@ std::atomic<bool>& interruptFlag() {
     sigaddset(&set, SIGINT);
     pthread_sigmask(SIG_BLOCK, &set, nullptr);
     std::thread([set]() mutable {
-      int sig = 0;
-      sigwait(&set, &sig);
-      flag = true;
+      for (;;) {
+        int sig = 0;
+        sigwait(&set, &sig);
+        if (flag) _exit(130);  // a second Ctrl-C: leave now
+        flag = true;
+      }
     }).detach();
   });
   return flag;
@@ -148,7 +152,7 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
   size_t pixels = size_t(s.width) * size_t(s.height);
   size_t tris = 0;
   for (const auto& m : s.meshes) tris += m.triangleCount();
-  std::cout << "job " << job.name() << ": scene " << (job.has_zoo() ? job.zoo() : s.name) << ", " << s.cameras.size() << " view(s) "
+  std::cout << "job " << job.name() << ": scene " << (job.has_zoo() ? job.zoo() : s.name.empty() ? std::string("(inline)") : s.name) << ", " << s.cameras.size() << " view(s) "
             << s.width << "x" << s.height << ", " << tris << " triangles, " << s.lights.size() << " light(s)\n";
   std::cout << "parameters: " << p.params.size() << " values\n";
   for (const auto& sl : p.params.slots()) {
@@ -206,6 +210,7 @@ struct RunArgs : JobArgs {
 };
 
 int runJob(const RunArgs& a) {
+  interruptFlag();
   std::filesystem::path baseDir;
   v1::JobSpec job = loadJob(a, baseDir);
   std::filesystem::path out(a.out);
@@ -233,6 +238,13 @@ int runJob(const RunArgs& a) {
   bool tempStore = a.store.empty();
   std::filesystem::path store = tempStore ? std::filesystem::temp_directory_path() / ("invr-run-" + std::to_string(getpid())) : std::filesystem::path(a.store);
   std::filesystem::create_directories(store);
+  struct RemoveStore {
+    std::filesystem::path dir;
+    ~RemoveStore() {
+      std::error_code ec;
+      if (!dir.empty()) std::filesystem::remove_all(dir, ec);
+    }
+  } removeStore{tempStore ? store : std::filesystem::path()};
   // Worker trouble reaches the user as progress events; the log is for --verbose.
   if (!a.verbose) spdlog::set_level(spdlog::level::err);
   server::ServerOptions so;
@@ -277,10 +289,6 @@ int runJob(const RunArgs& a) {
   }
   local.stop();
   srv.shutdown();
-  if (tempStore) {
-    std::error_code ec;
-    std::filesystem::remove_all(store, ec);
-  }
   return code;
 }
 
@@ -330,6 +338,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   wc->add_option("--from", w->from, "resume from this event sequence number");
   wc->add_flag("--json", w->json, "one JSON object per event");
   wc->callback([w, &exitCode] {
+    interruptFlag();
     ServiceClient c(w->server);
     exitCode = watchToEnd(c, w->id, w->from, w->json, "the job goes on: invr watch " + w->id + " --server " + w->server);
   });

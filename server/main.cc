@@ -1,5 +1,6 @@
 // invr-server: the optimisation service (see server.h).
 #include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -9,6 +10,7 @@
 #include "server/server.h"
 
 int main(int argc, char** argv) {
+  spdlog::set_default_logger(spdlog::stderr_color_mt("invr"));  // stdout is for results (and --json)
   CLI::App app{"invr-server: accepts optimisation jobs and farms their gradient steps to invr-worker processes"};
   invr::server::ServerOptions o;
   std::string portFile;

@@ -737,8 +737,10 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         bool all = true;
         for (size_t s = 0; s < n; ++s) {
           if (!tasks[s] || results[s]) continue;
-          all = false;
-          if (!leaseOf[s]) continue;
+          if (!leaseOf[s]) {
+            all = false;
+            continue;
+          }
           Lease& l = leases[leaseOf[s]];
           const WorkerEntry& w = workers[l.worker];
           if (l.done) {
@@ -746,15 +748,21 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
               results[s] = std::move(l.result);
               run.fresh[s] = false;
               dropLease(s);
-            } else if (l.result.input_error()) {
+              continue;
+            }
+            all = false;
+            if (l.result.input_error()) {
               throw JobFailed{l.result.error()};
             } else {
               retry(s, "worker " + w.name + " failed: " + l.result.error());
             }
           } else if (!w.alive()) {
+            all = false;
             retry(s, "worker " + w.name + " lost");
-          } else if (Clock::now() > l.deadline) {
-            retry(s, "lease on worker " + w.name + " expired after " + std::to_string(int(opt.leaseSeconds)) + " s");
+          } else {
+            all = false;
+            if (Clock::now() > l.deadline)
+              retry(s, "lease on worker " + w.name + " expired after " + std::to_string(int(opt.leaseSeconds)) + " s");
           }
         }
         if (all) return results;
@@ -823,7 +831,13 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         step = ck.step();
         secondsBefore = ck.seconds();
       } else {
+        // Step 0 is a checkpoint too: a job that diverges on its first step still has one to keep.
         theta = p.initial;
+        ck.set_step(0);
+        ck.set_counter(0);
+        ck.mutable_theta()->Assign(theta.begin(), theta.end());
+        jobs.saveCheckpoint(id, ck);
+        haveCheckpoint = true;
       }
       if (theta.size() != p.params.size()) throw JobFailed{"checkpoint does not match the job's parameters"};
       Run run;

@@ -1,5 +1,7 @@
 // invr-worker: evaluates gradient tasks for an invr-server (see worker.h).
 #include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
@@ -13,6 +15,7 @@ void onSignal(int) { gStop = true; }
 }  // namespace
 
 int main(int argc, char** argv) {
+  spdlog::set_default_logger(spdlog::stderr_color_mt("invr"));  // stdout is for results (and --json)
   CLI::App app{"invr-worker: evaluates mini-batch gradients for an invr-server"};
   invr::worker::WorkerOptions o;
   app.add_option("--server", o.server, "server address host:port")->capture_default_str();

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 
@@ -14,6 +15,14 @@ void accumulateShard(GradientResult& total, const GradientResult& shard) {
   total.stats.nonFiniteSamples += shard.stats.nonFiniteSamples;
 }
 
+namespace {
+std::string shortNumber(float v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", double(v));
+  return b;
+}
+}  // namespace
+
 void checkDivergence(const Problem& p, uint64_t step, double loss, const std::vector<float>& theta) {
   if (!std::isfinite(loss)) throw InputError("step " + std::to_string(step) + ": the loss is not finite (diverged)");
   // Non-finite samples are dropped before they reach the loss, so divergence shows in the
@@ -22,7 +31,7 @@ void checkDivergence(const Problem& p, uint64_t step, double loss, const std::ve
     for (uint32_t k = 0; k < slot.size; ++k) {
       float v = theta[slot.offset + k];
       if (!std::isfinite(v) || std::abs(v) > kDivergenceLimit)
-        throw InputError("step " + std::to_string(step) + ": parameter '" + slot.name + "' reached " + std::to_string(v) +
+        throw InputError("step " + std::to_string(step) + ": parameter '" + slot.name + "' reached " + shortNumber(v) +
                          " (diverged; lower its learning rate)");
     }
 }

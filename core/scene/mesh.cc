@@ -307,6 +307,12 @@ TriangleMesh loadMesh(const std::filesystem::path& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
   if (ext == ".obj") return loadObj(path);
   if (ext == ".ply") return loadPly(path);
+  if (ext.empty()) {  // content-addressed assets have no extension: PLY files say so in their first line
+    std::ifstream in(path, std::ios::binary);
+    char magic[4] = {0, 0, 0, 0};
+    in.read(magic, 3);
+    return std::string(magic) == "ply" ? loadPly(path) : loadObj(path);
+  }
   throw InputError("mesh '" + path.string() + "': unsupported format '" + ext + "' (use .obj or .ply)");
 }
 

@@ -18,6 +18,8 @@
 #include <grpcpp/generic/generic_stub.h>
 
 #include "core/diff/zoo_jobs.h"
+#include "core/image/image.h"
+#include "core/io/job_io.h"
 #include "core/optim/local_run.h"
 #include "invr/v1/service.grpc.pb.h"
 #include "server/wire.h"
@@ -109,6 +111,25 @@ class Cluster {
   }
   void killServer() { stopProcess(server_, SIGKILL); }
   void killWorker(size_t i) { stopProcess(workers_.at(i), SIGKILL); }
+  // SIGTERM; returns the worker's exit status.
+  int terminateWorker(size_t i) {
+    int status = -1;
+    kill(workers_.at(i), SIGTERM);
+    waitpid(workers_.at(i), &status, 0);
+    workers_.at(i) = 0;
+    return status;
+  }
+  std::string upload(const std::string& bytes) {
+    grpc::ClientContext ctx;
+    v1::AssetInfo info;
+    auto w = stub_->UploadAsset(&ctx, &info);
+    v1::AssetChunk ch;
+    ch.set_data(bytes);
+    w->Write(ch);
+    w->WritesDone();
+    EXPECT_TRUE(w->Finish().ok());
+    return info.sha256();
+  }
   std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
   v1::InvrService::Stub& stub() { return *stub_; }
   fs::path store() const { return dir_ / "store"; }
@@ -416,6 +437,113 @@ TEST(Service, BadInputIsRejectedWithTheFieldAndTheServerKeepsServing) {
   v1::ListJobsResponse all;
   ASSERT_TRUE(c.stub().ListJobs(&ctx, v1::ListJobsRequest(), &all).ok());
   EXPECT_EQ(all.jobs_size(), 1);
+}
+
+TEST(Service, WorkerSigtermFinishesItsTaskAndLeaves) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(1);
+  c.startWorker(1);
+  v1::JobSpec job = smallJob("backlit", 8);
+  job.mutable_optimization()->set_shards(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto first = c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 2; });
+  int status = c.terminateWorker(0);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "status " << status;
+  auto rest = c.watch(id, first.back().sequence() + 1);
+  ASSERT_TRUE(rest.back().has_final());
+  EXPECT_EQ(rest.back().final().state(), v1::SUCCEEDED) << rest.back().final().reason();
+  first.insert(first.end(), rest.begin(), rest.end());
+  std::vector<uint64_t> expect(8);
+  std::iota(expect.begin(), expect.end(), 1);
+  EXPECT_EQ(stepsOf(first), expect);
+}
+
+TEST(Service, ExpiredLeasesFailTheJobAfterBoundedAttempts) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  // Leases of 0.3 s cannot cover building a session (rendering targets at 256 spp).
+  c.startServer(0, {"--lease-seconds", "0.3", "--max-attempts", "2"});
+  c.startWorker(1);
+  v1::JobSpec job = smallJob("cornell", 3);
+  job.mutable_optimization()->set_target_spp(256);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::FAILED);
+  EXPECT_NE(evs.back().final().reason().find("failed 2 times"), std::string::npos) << evs.back().final().reason();
+  EXPECT_NE(evs.back().final().reason().find("expired"), std::string::npos) << evs.back().final().reason();
+  // The server still serves.
+  EXPECT_EQ(c.get(id).state(), v1::FAILED);
+}
+
+TEST(Service, UploadedTargetImagesAreUsedAndNoParameterErrorIsClaimed) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  // The target: cornell rendered with its true albedos, written as EXR and uploaded.
+  v1::JobSpec job = smallJob("cornell", 3);
+  {
+    Problem p = buildProblem(job);
+    writeImage(tmp.path / "target.exr", renderTarget(p, 0));
+  }
+  std::ifstream in(tmp.path / "target.exr", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  job.mutable_optimization()->add_targets()->set_sha256(c.upload(bytes));
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_LT(evs.back().final().param_error(), 0.0);  // no ground truth: not reported
+  // Same images as the synthetic job's, so the same parameters.
+  v1::JobSpec synthetic = smallJob("cornell", 3);
+  EXPECT_EQ(c.checkpointTheta(id), inProcess(synthetic));
+}
+
+TEST(Service, ParameterVectorsBeyondFourMebibytesTravel) {
+  // A 1024x1024 albedo texture: 3.1M parameters, 12 MiB of theta per task and 24 MiB of gradient
+  // per result, against gRPC's 4 MiB default.
+  const char* json = R"({
+  "name": "big-texture",
+  "scene": {
+    "materials": [
+      {"name": "canvas", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 1024,
+        "color_a": {"r": 0.7, "g": 0.6, "b": 0.5}, "color_b": {"r": 0.2, "g": 0.3, "b": 0.4}}}}},
+      {"name": "lamp", "diffuse": {"albedo": {"value": 0.5}}}
+    ],
+    "shapes": [
+      {"name": "canvas", "material": "canvas", "quad": {}},
+      {"name": "lamp", "material": "lamp", "quad": {},
+       "transform": {"scale": {"x": 0.5, "y": 0.5, "z": 1}, "rotate_xyz_degrees": {"x": 180}, "translate": {"z": 2}}}
+    ],
+    "lights": [{"name": "lamp", "area": {"shape": "lamp", "radiance": {"r": 10, "g": 10, "b": 10}}}],
+    "views": [{"name": "front", "eye": {"z": 3}, "target": {}, "fov_y_degrees": 40}],
+    "film": {"width": 32, "height": 32}
+  },
+  "optimization": {
+    "parameters": [{"name": "materials/canvas/albedo", "initial": 0.5, "learning_rate": 0.01}],
+    "steps": 2, "target_spp": 2, "seed": "3"
+  }
+}
+)";
+  v1::JobSpec job = parseJobJson(json, "big.json");
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  std::vector<float> theta = c.checkpointTheta(id);
+  EXPECT_EQ(theta.size(), 3u * 1024 * 1024);
+  EXPECT_EQ(theta, inProcess(job));
 }
 
 TEST(Service, HealthAndReflectionAreServed) {
