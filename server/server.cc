@@ -149,7 +149,6 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     std::string id;
     std::vector<uint64_t> assignment;  // shard -> worker (0: none); sticky
     std::vector<int> attempts;         // failed attempts of the current evaluation, per shard
-    std::vector<bool> fresh;           // shard's session will be built from scratch on its worker
     uint32_t rebuildBurnIn = 0;
     bool announcedWaiting = false;
   };
@@ -668,7 +667,6 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     }
     if (best) {
       run.assignment[shard] = best;
-      run.fresh[shard] = true;
       if (w) logEventLocked(job, "shard " + std::to_string(shard) + " moved to worker " + workers[best].name + " (rebuilding its state)");
     }
     return best;
@@ -720,7 +718,9 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           }
           v1::Task t = *tasks[s];
           t.set_task_id(nextTask++);
-          if (run.fresh[s]) t.set_rebuild_burn_in(run.rebuildBurnIn);
+          // Whenever a worker (re)builds the shard's session mid-job (new assignment, eviction,
+          // restart) it refills the reservoirs with this many render-only steps first.
+          t.set_rebuild_burn_in(run.rebuildBurnIn);
           Lease l;
           l.taskId = t.task_id();
           l.shard = s;
@@ -746,7 +746,6 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           if (l.done) {
             if (l.result.error().empty()) {
               results[s] = std::move(l.result);
-              run.fresh[s] = false;
               dropLease(s);
               continue;
             }
@@ -844,7 +843,6 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       run.id = id;
       run.assignment.assign(p.shards.size(), 0);
       run.attempts.assign(p.shards.size(), 0);
-      run.fresh.assign(p.shards.size(), true);
       // A worker that takes over a shard mid-job rebuilds its reservoirs with render-only steps.
       {
         std::lock_guard<std::mutex> lk(mu);

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", o.threads, "render threads (0: every core)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--name", o.name, "name shown in the server's log (default host:pid)");
   app.add_option("--max-sessions", o.maxSessions, "per-job sessions kept (least recently used evicted)")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-memory-mb", o.maxMemoryMb, "evict sessions while resident memory exceeds this (0: half the RAM)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--cache", o.cacheDir, "folder for fetched assets (default: a temporary folder)");
   app.add_option("--parent-pid", o.parentPid, "exit when this process exits");
   CLI11_PARSE(app, argc, argv);

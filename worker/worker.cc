@@ -29,6 +29,14 @@ namespace {
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// Resident memory of this process, from /proc.
+double residentMb() {
+  std::ifstream in("/proc/self/statm");
+  double pages = 0, resident = 0;
+  in >> pages >> resident;
+  return resident * double(sysconf(_SC_PAGESIZE)) / 1048576.0;
+}
+
 // One shard of one job, alive across steps: this is what makes reservoirs persist.
 struct Session {
   std::unique_ptr<Problem> problem;
@@ -55,6 +63,8 @@ class Worker {
     }
     if (opt_.cacheDir.empty()) opt_.cacheDir = std::filesystem::temp_directory_path() / ("invr-worker-" + std::to_string(getpid()));
     std::filesystem::create_directories(opt_.cacheDir);
+    memoryLimitMb_ = opt_.maxMemoryMb > 0 ? opt_.maxMemoryMb
+                                          : 0.5 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE)) / 1048576.0;
   }
 
   int run() {
@@ -246,11 +256,14 @@ class Worker {
     }
     res.set_rebuilt(true);
     res.set_seconds_session(since(t0));
-    while (sessions_.size() >= opt_.maxSessions) {  // least recently used goes
+    // Least recently used sessions go while there are too many or memory is short (an evicted
+    // shard is rebuilt, with a burn-in, when its next task comes).
+    while (!sessions_.empty() && (sessions_.size() >= opt_.maxSessions || residentMb() > memoryLimitMb_)) {
       auto lru = sessions_.begin();
       for (auto i = sessions_.begin(); i != sessions_.end(); ++i)
         if (i->second.lastUse < lru->second.lastUse) lru = i;
-      spdlog::info("worker {}: evicting session {}/{}", opt_.name, lru->first.first, lru->first.second);
+      spdlog::info("worker {}: evicting session {}/{} ({} sessions, {:.0f} MiB resident)", opt_.name, lru->first.first,
+                   lru->first.second, sessions_.size(), residentMb());
       sessions_.erase(lru);
     }
     s.lastUse = ++useClock_;
@@ -313,6 +326,7 @@ class Worker {
   std::map<std::pair<std::string, uint32_t>, Session> sessions_;
   uint64_t useClock_ = 0;
   std::atomic<bool> cancel_{false};
+  double memoryLimitMb_ = 0;
 };
 
 }  // namespace

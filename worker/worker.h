@@ -13,6 +13,7 @@ struct WorkerOptions {
   int threads = 0;               // 0: every core
   std::string name;              // default host:pid
   size_t maxSessions = 16;       // least recently used sessions beyond this are evicted
+  double maxMemoryMb = 0;        // ... and while the process holds more than this (0: half the RAM)
   std::filesystem::path cacheDir;  // fetched assets; default: a temporary folder
   int parentPid = 0;             // exit when this process is gone (local workers of `invr run`)
   double heartbeatSeconds = 1.0;

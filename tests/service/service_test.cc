@@ -12,6 +12,7 @@
 #include <fstream>
 #include <condition_variable>
 #include <mutex>
+#include <set>
 #include <numeric>
 #include <thread>
 
@@ -22,6 +23,7 @@
 #include "core/io/job_io.h"
 #include "core/optim/local_run.h"
 #include "invr/v1/service.grpc.pb.h"
+#include "reflection_probe.grpc.pb.h"
 #include "server/wire.h"
 
 extern char** environ;
@@ -95,10 +97,11 @@ class Cluster {
     stub_ = v1::InvrService::NewStub(wire::channel(address()));
     return port_;
   }
-  pid_t startWorker(int threads = 1) {
-    pid_t p = spawn({(kBin / "invr-worker").string(), "--server", address(), "--threads", std::to_string(threads), "--name",
-                     "w" + std::to_string(workers_.size() + 1)},
-                    dir_ / ("worker" + std::to_string(workers_.size() + 1) + ".log"));
+  pid_t startWorker(int threads = 1, std::vector<std::string> extra = {}) {
+    std::vector<std::string> args = {(kBin / "invr-worker").string(), "--server", address(), "--threads", std::to_string(threads),
+                                     "--name", "w" + std::to_string(workers_.size() + 1)};
+    args.insert(args.end(), extra.begin(), extra.end());
+    pid_t p = spawn(args, workerLog(workers_.size()));
     workers_.push_back(p);
     // Shards stick to the workers present when a job starts: wait until this one is connected.
     for (int i = 0; i < 400; ++i) {
@@ -110,6 +113,7 @@ class Cluster {
     return p;
   }
   void killServer() { stopProcess(server_, SIGKILL); }
+  fs::path workerLog(size_t i) const { return dir_ / ("worker" + std::to_string(i + 1) + ".log"); }
   void killWorker(size_t i) { stopProcess(workers_.at(i), SIGKILL); }
   // SIGTERM; returns the worker's exit status.
   int terminateWorker(size_t i) {
@@ -546,6 +550,23 @@ TEST(Service, ParameterVectorsBeyondFourMebibytesTravel) {
   EXPECT_EQ(theta, inProcess(job));
 }
 
+TEST(Service, EvictedSessionsAreRebuiltAndTheJobCompletes) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2, {"--max-sessions", "1"});  // two shards, room for one session
+  v1::JobSpec job = smallJob("backlit", 3);
+  job.mutable_optimization()->set_shards(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  std::ifstream log(c.workerLog(0));
+  std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("evicting session"), std::string::npos);
+}
+
 TEST(Service, HealthAndReflectionAreServed) {
   TempDir tmp;
   Cluster c(tmp.path);
@@ -576,6 +597,22 @@ TEST(Service, HealthAndReflectionAreServed) {
   std::string bytes;
   for (auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
   EXPECT_EQ(bytes, std::string("\x08\x01", 2));
+
+  // Server reflection lists both services.
+  auto refl = grpc::reflection::v1alpha::ServerReflection::NewStub(ch);
+  grpc::ClientContext rctx;
+  auto stream = refl->ServerReflectionInfo(&rctx);
+  grpc::reflection::v1alpha::ServerReflectionRequest rq;
+  rq.set_list_services("");
+  ASSERT_TRUE(stream->Write(rq));
+  stream->WritesDone();
+  grpc::reflection::v1alpha::ServerReflectionResponse rr;
+  ASSERT_TRUE(stream->Read(&rr));
+  std::set<std::string> names;
+  for (const auto& sv : rr.list_services_response().service()) names.insert(sv.name());
+  EXPECT_TRUE(stream->Finish().ok());
+  EXPECT_TRUE(names.count("invr.v1.InvrService"));
+  EXPECT_TRUE(names.count("invr.v1.WorkerService"));
 }
 
 }  // namespace
