@@ -49,14 +49,8 @@ double gAccountedOverhead = 0;
 double serviceSecondsPerStep(const v1::JobSpec& job, int workers, int threads) {
   auto store = std::filesystem::temp_directory_path() / ("invr-bench-" + std::to_string(getpid()));
   std::filesystem::remove_all(store);
-  server::ServerOptions so;
-  so.storeDir = store;
-  server::Server srv(so);
-  int port = srv.start();
-  LocalWorkers local;
-  local.start(workers, threads, port, store);
-  ServiceClient c("127.0.0.1:" + std::to_string(port));
-  if (!c.waitForWorkers(workers, 30)) throw std::runtime_error("bench service: local workers did not connect");
+  EmbeddedService service(store, workers, threads);
+  ServiceClient& c = service.client();
   auto r = c.submit(job, "");
   std::vector<std::pair<uint64_t, double>> pts;
   std::atomic<bool> never{false};
@@ -70,8 +64,7 @@ double serviceSecondsPerStep(const v1::JobSpec& job, int workers, int threads) {
     pts.emplace_back(e.step().step(), e.step().seconds());
   }, never);
   gAccountedOverhead = own / std::max(total, 1e-9);
-  local.stop();
-  srv.shutdown();
+  service.stop();
   std::filesystem::remove_all(store);
   if (!final || final->state() != v1::SUCCEEDED) throw std::runtime_error("bench service: job did not succeed: " + (final ? final->reason() : ""));
   return steadySecondsPerStep(pts);

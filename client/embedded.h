@@ -13,6 +13,8 @@
 #include <vector>
 
 #include "client/exit_codes.h"
+#include "client/service_client.h"
+#include "server/server.h"
 
 extern char** environ;
 
@@ -58,6 +60,35 @@ struct LocalWorkers {
     for (pid_t p : pids) waitpid(p, nullptr, 0);
     pids.clear();
   }
+};
+
+// A server in this process with its store in `store`, plus local worker processes that have
+// all connected (shards stick to the workers present when a job starts).
+class EmbeddedService {
+ public:
+  EmbeddedService(const std::filesystem::path& store, int workers, int threads) : server_(options(store)) {
+    int port = server_.start();
+    local_.start(workers, threads, port, store);
+    client_ = std::make_unique<ServiceClient>("127.0.0.1:" + std::to_string(port));
+    if (!client_->waitForWorkers(workers, 30))
+      throw ExitError(exit_code::kInternal, "local workers did not connect (logs in " + store.string() + ")");
+  }
+  ~EmbeddedService() { stop(); }
+  ServiceClient& client() { return *client_; }
+  void stop() {
+    local_.stop();
+    server_.shutdown();
+  }
+
+ private:
+  static server::ServerOptions options(const std::filesystem::path& store) {
+    server::ServerOptions o;
+    o.storeDir = store;
+    return o;
+  }
+  server::Server server_;
+  LocalWorkers local_;
+  std::unique_ptr<ServiceClient> client_;
 };
 
 }  // namespace invr::cli

@@ -70,46 +70,48 @@ void ServiceClient::uploadAssets(v1::JobSpec& job, const std::filesystem::path& 
   });
 }
 
-v1::SubmitJobResponse ServiceClient::submit(const v1::JobSpec& job, const std::string& requestId) {
+namespace {
+
+// One unary call: the response, or an ExitError naming what failed.
+template <class Resp, class Req, class Method>
+Resp unary(v1::InvrService::Stub& stub, Method method, const Req& req, const std::string& what) {
   grpc::ClientContext ctx;
-  v1::SubmitJobRequest req;
-  req.set_request_id(requestId);
-  *req.mutable_spec() = job;
-  v1::SubmitJobResponse resp;
-  throwIfFailed(stub_->SubmitJob(&ctx, req, &resp), "submit");
+  Resp resp;
+  throwIfFailed((stub.*method)(&ctx, req, &resp), what);
   return resp;
 }
 
+v1::GetJobRequest jobRequest(const std::string& id) {
+  v1::GetJobRequest r;
+  r.set_job_id(id);
+  return r;
+}
+
+}  // namespace
+
+v1::SubmitJobResponse ServiceClient::submit(const v1::JobSpec& job, const std::string& requestId) {
+  v1::SubmitJobRequest req;
+  req.set_request_id(requestId);
+  *req.mutable_spec() = job;
+  return unary<v1::SubmitJobResponse>(*stub_, &v1::InvrService::Stub::SubmitJob, req, "submit");
+}
+
 v1::JobStatus ServiceClient::get(const std::string& job) {
-  grpc::ClientContext ctx;
-  v1::GetJobRequest req;
-  req.set_job_id(job);
-  v1::JobStatus s;
-  throwIfFailed(stub_->GetJob(&ctx, req, &s), "status");
-  return s;
+  return unary<v1::JobStatus>(*stub_, &v1::InvrService::Stub::GetJob, jobRequest(job), "status");
 }
 
 v1::ListJobsResponse ServiceClient::list() {
-  grpc::ClientContext ctx;
-  v1::ListJobsResponse r;
-  throwIfFailed(stub_->ListJobs(&ctx, v1::ListJobsRequest(), &r), "list");
-  return r;
+  return unary<v1::ListJobsResponse>(*stub_, &v1::InvrService::Stub::ListJobs, v1::ListJobsRequest(), "list");
 }
 
 v1::JobStatus ServiceClient::cancel(const std::string& job) {
-  grpc::ClientContext ctx;
   v1::CancelJobRequest req;
   req.set_job_id(job);
-  v1::JobStatus s;
-  throwIfFailed(stub_->CancelJob(&ctx, req, &s), "cancel");
-  return s;
+  return unary<v1::JobStatus>(*stub_, &v1::InvrService::Stub::CancelJob, req, "cancel");
 }
 
 v1::ListWorkersResponse ServiceClient::workers() {
-  grpc::ClientContext ctx;
-  v1::ListWorkersResponse r;
-  throwIfFailed(stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &r), "workers");
-  return r;
+  return unary<v1::ListWorkersResponse>(*stub_, &v1::InvrService::Stub::ListWorkers, v1::ListWorkersRequest(), "workers");
 }
 
 bool ServiceClient::waitForWorkers(int n, double timeoutSeconds) {

@@ -247,15 +247,8 @@ int runJob(const RunArgs& a) {
   } removeStore{tempStore ? store : std::filesystem::path()};
   // Worker trouble reaches the user as progress events; the log is for --verbose.
   if (!a.verbose) spdlog::set_level(spdlog::level::err);
-  server::ServerOptions so;
-  so.storeDir = store;
-  server::Server srv(so);
-  int port = srv.start();
-  LocalWorkers local;
-  local.start(workers, threads, port, store);
-  ServiceClient c("127.0.0.1:" + std::to_string(port));
-  // Shards stick to the workers they start on: let every local worker connect first.
-  if (!c.waitForWorkers(workers, 30)) throw ExitError(exit_code::kInternal, "local workers did not connect (logs in " + store.string() + ")");
+  EmbeddedService service(store, workers, threads);
+  ServiceClient& c = service.client();
   c.uploadAssets(job, baseDir);
   // The request id is the job's content: with a kept --store, running the same job again
   // resumes it (or returns its results) instead of starting over.
@@ -287,8 +280,7 @@ int runJob(const RunArgs& a) {
       std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv, final/target renders, progress.jsonl)\n";
     }
   }
-  local.stop();
-  srv.shutdown();
+  service.stop();
   return code;
 }
 

@@ -285,29 +285,40 @@ TEST(Service, TwoWorkersGiveTheSameParametersAsOne) {
   EXPECT_EQ(theta[0], inProcess(job));
 }
 
-TEST(Service, WorkerKilledMidJobTheJobCompletesAndNoStepRepeats) {
-  TempDir tmp;
-  Cluster c(tmp.path);
+// Runs backlit (two shards) on two workers, disturbs one after step `after`, and returns every
+// event of the job once it has ended.
+std::vector<v1::ProgressEvent> runAndDisturb(Cluster& c, int steps, uint64_t after, const std::function<void()>& disturb) {
   c.startServer();
   c.startWorker(1);
   c.startWorker(1);
-  v1::JobSpec job = smallJob("backlit", 12);
+  v1::JobSpec job = smallJob("backlit", steps);
   job.mutable_optimization()->set_shards(2);
   std::string id;
-  ASSERT_TRUE(c.submit(job, &id).ok());
-  auto first = c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 3; });
-  c.killWorker(0);
-  auto rest = c.watch(id, first.back().sequence() + 1);
-  ASSERT_TRUE(rest.back().has_final());
-  EXPECT_EQ(rest.back().final().state(), v1::SUCCEEDED) << rest.back().final().reason();
-  first.insert(first.end(), rest.begin(), rest.end());
-  std::vector<uint64_t> expect(12);
-  std::iota(expect.begin(), expect.end(), 1);
-  EXPECT_EQ(stepsOf(first), expect);  // every step once, in order
+  EXPECT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id, 0, [&](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= after; });
+  disturb();
+  auto rest = c.watch(id, evs.back().sequence() + 1);
+  evs.insert(evs.end(), rest.begin(), rest.end());
+  return evs;
+}
+
+std::vector<uint64_t> oneTo(uint64_t n) {
+  std::vector<uint64_t> v(n);
+  std::iota(v.begin(), v.end(), 1);
+  return v;
+}
+
+TEST(Service, WorkerKilledMidJobTheJobCompletesAndNoStepRepeats) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  auto evs = runAndDisturb(c, 12, 3, [&] { c.killWorker(0); });
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_EQ(stepsOf(evs), oneTo(12));  // every step once, in order
   std::string log;
-  for (const auto& e : first)
+  for (const auto& e : evs)
     if (e.has_message()) log += e.message() + "\n";
-  EXPECT_TRUE(anyMessage(first, "lost")) << "progress should say a worker was lost:\n" << log;
+  EXPECT_TRUE(anyMessage(evs, "lost")) << "progress should say a worker was lost:\n" << log;
 }
 
 TEST(Service, ServerKilledMidJobResumesFromItsCheckpoint) {
@@ -446,23 +457,12 @@ TEST(Service, BadInputIsRejectedWithTheFieldAndTheServerKeepsServing) {
 TEST(Service, WorkerSigtermFinishesItsTaskAndLeaves) {
   TempDir tmp;
   Cluster c(tmp.path);
-  c.startServer();
-  c.startWorker(1);
-  c.startWorker(1);
-  v1::JobSpec job = smallJob("backlit", 8);
-  job.mutable_optimization()->set_shards(2);
-  std::string id;
-  ASSERT_TRUE(c.submit(job, &id).ok());
-  auto first = c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 2; });
-  int status = c.terminateWorker(0);
+  int status = -1;
+  auto evs = runAndDisturb(c, 8, 2, [&] { status = c.terminateWorker(0); });
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "status " << status;
-  auto rest = c.watch(id, first.back().sequence() + 1);
-  ASSERT_TRUE(rest.back().has_final());
-  EXPECT_EQ(rest.back().final().state(), v1::SUCCEEDED) << rest.back().final().reason();
-  first.insert(first.end(), rest.begin(), rest.end());
-  std::vector<uint64_t> expect(8);
-  std::iota(expect.begin(), expect.end(), 1);
-  EXPECT_EQ(stepsOf(first), expect);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_EQ(stepsOf(evs), oneTo(8));
 }
 
 TEST(Service, ExpiredLeasesFailTheJobAfterBoundedAttempts) {
