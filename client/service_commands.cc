@@ -21,6 +21,7 @@
 #include "client/progress.h"
 #include "client/service_client.h"
 #include "core/diff/problem.h"
+#include "core/optim/chart.h"
 #include "core/restir/reservoir_store.h"
 #include "server/server.h"
 #include "server/sha256.h"
@@ -277,7 +278,7 @@ int runJob(const RunArgs& a) {
         if (st.param_error() >= 0) std::cout << ", parameter error " << parameterError(probe, probe.initial) << " -> " << st.param_error();
         std::cout << "\n";
       }
-      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv, final/target renders, progress.jsonl)\n";
+      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv and .png, final/target renders, progress.jsonl)\n";
     }
   }
   service.stop();
@@ -401,6 +402,29 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     const v1::ListWorkersResponse all = c.workers();
     for (const auto& w : all.workers())
       std::cout << w.name() << "  " << w.capacity() << " thread(s)  " << w.shards() << " shard(s)" << (w.leaving() ? "  leaving" : "") << "\n";
+    exitCode = exit_code::kOk;
+  });
+
+  struct ChartArgs {
+    std::vector<std::string> inputs;
+    std::string out = "chart.png", x = "seconds", y = "param_error";
+  };
+  auto ch = std::make_shared<ChartArgs>();
+  auto* chc = app.add_subcommand("chart", "Chart convergence CSVs or job output folders (log-scale error against time or steps)");
+  chc->add_option("runs", ch->inputs, "convergence.csv files, or folders holding one (from run, fetch, optimize)")->required();
+  chc->add_option("-o,--out", ch->out, "chart file (.png or .svg)")->capture_default_str();
+  chc->add_option("--x", ch->x, "x axis")->check(CLI::IsMember({"seconds", "step"}))->capture_default_str();
+  chc->add_option("--y", ch->y, "y axis")->check(CLI::IsMember({"param_error", "loss"}))->capture_default_str();
+  chc->callback([ch, &exitCode] {
+    std::vector<std::filesystem::path> csvs;
+    for (const auto& in : ch->inputs) {
+      std::filesystem::path p(in);
+      if (std::filesystem::is_directory(p)) p /= "convergence.csv";
+      if (!std::filesystem::exists(p)) throw InputError("'" + p.string() + "': not found");
+      csvs.push_back(p);
+    }
+    drawConvergenceChart(csvs, ch->out, ch->x, ch->y);
+    std::cout << "wrote " << where(ch->out) << "\n";
     exitCode = exit_code::kOk;
   });
 

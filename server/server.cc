@@ -21,6 +21,7 @@
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/io/job_io.h"
+#include "core/optim/chart.h"
 #include "core/optim/local_run.h"
 #include "core/optim/results_io.h"
 #include "invr/v1/service.grpc.pb.h"
@@ -1030,6 +1031,14 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       for (auto& [k, r] : rows) out << r << "\n";
       (void)csv;
       files.push_back("convergence.csv");
+    }
+    // Its chart, when the machine can draw one (a missing matplotlib never fails a job).
+    try {
+      drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png", "seconds",
+                           p.groundTruthKnown() ? "param_error" : "loss");
+      files.push_back("convergence.png");
+    } catch (const std::exception& e) {
+      spdlog::warn("[{}] no convergence chart: {}", run.id, e.what());
     }
     // Final renders (and the targets beside them) from the workers.
     logEvent(run.id, "rendering final images");
