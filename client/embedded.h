@@ -76,8 +76,8 @@ class EmbeddedService {
   ~EmbeddedService() { stop(); }
   ServiceClient& client() { return *client_; }
   void stop() {
+    server_.shutdown();  // first: an unfinished job stays as it was, not "worker lost"
     local_.stop();
-    server_.shutdown();
   }
 
  private:

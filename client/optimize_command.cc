@@ -11,6 +11,7 @@
 #include "core/diff/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
+#include "core/optim/chart.h"
 #include "core/optim/local_run.h"
 #include "core/optim/results_io.h"
 #include "core/render/renderer.h"
@@ -57,6 +58,12 @@ void runOptimize(const OptimizeArgs& a) {
   });
   bar.finish();
   writeParameters(dir, problem.params, result.theta);
+  csv.close();
+  try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
+    drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png");
+  } catch (const std::exception& e) {
+    std::cerr << "invr: no convergence chart: " << e.what() << "\n";
+  }
   RenderOptions ro;
   ro.spp = 64;
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {
@@ -66,7 +73,7 @@ void runOptimize(const OptimizeArgs& a) {
   const StepReport& last = result.history.back();
   std::cout << "done: parameter error " << parameterError(problem, problem.initial) << " -> " << last.parameterError << ", loss "
             << result.history.front().loss << " -> " << last.loss << " in " << last.seconds << " s\n"
-            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv, parameters.json, final/target renders)\n";
+            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, final/target renders)\n";
 }
 
 }  // namespace

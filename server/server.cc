@@ -152,6 +152,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     std::vector<int> attempts;         // failed attempts of the current evaluation, per shard
     uint32_t rebuildBurnIn = 0;
     bool announcedWaiting = false;
+    Clock::time_point started = Clock::now();
   };
 
   ServerOptions opt;
@@ -312,7 +313,15 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       }
     }
     // Building the problem loads meshes and textures: not on a gRPC thread.
-    postControl([this, reactor, req, resp] { reactor->Finish(submit(*req, *resp)); });
+    postControl([this, reactor, req, resp] {
+      grpc::Status st;
+      try {
+        st = submit(*req, *resp);
+      } catch (const std::exception& e) {  // the store's disk, not the job: say so, keep serving
+        st = grpc::Status(grpc::StatusCode::INTERNAL, std::string("job store: ") + e.what());
+      }
+      reactor->Finish(st);
+    });
     return reactor;
   }
 
@@ -710,7 +719,14 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         if (job.cancelRequested) throw JobCancelled{};
         checkWorkersLocked();
         bool waiting = false;
-        for (size_t s = 0; s < n; ++s) {
+        // Shards stick to the workers they start on, so a job that has more shards than
+        // connected workers gives late workers (starting up, reconnecting after a server
+        // restart) a moment before the first assignment.
+        bool unassigned = std::all_of(run.assignment.begin(), run.assignment.end(), [](uint64_t w) { return w == 0; });
+        size_t alive = size_t(std::count_if(workers.begin(), workers.end(), [](const auto& kv) { return kv.second.alive() && !kv.second.leaving; }));
+        bool settle = unassigned && alive > 0 && alive < run.assignment.size() &&
+                      std::chrono::duration<double>(Clock::now() - run.started).count() < opt.assignGraceSeconds;
+        for (size_t s = 0; s < n && !settle; ++s) {
           if (!tasks[s] || results[s] || leaseOf[s]) continue;
           uint64_t w = pickWorkerLocked(run, job, s);
           if (!w) {
@@ -766,7 +782,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           }
         }
         if (all) return results;
-        cv.wait_for(lk, std::chrono::milliseconds(100));
+        cv.wait_for(lk, std::chrono::milliseconds(settle ? 20 : 100));
       }
     } catch (...) {
       for (size_t s = 0; s < n; ++s)
@@ -794,7 +810,11 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         id = queue.front();
         queue.pop_front();
       }
-      runJob(id);
+      try {
+        runJob(id);
+      } catch (const std::exception& e) {  // only the store's disk can get here; the server stays up
+        spdlog::error("[{}] {}", id, e.what());
+      }
     }
   }
 

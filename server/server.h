@@ -21,6 +21,7 @@ struct ServerOptions {
   double leaseSeconds = 600;             // a task not answered by then is reassigned
   double heartbeatTimeoutSeconds = 10;   // a silent worker is presumed gone
   int maxAttempts = 3;                   // per shard and step, before the job fails
+  double assignGraceSeconds = 3;         // at a job's start, wait this long for one worker per shard
   uint64_t maxAssetBytes = uint64_t(1) << 30;
   int finalSpp = 64;                     // final renders written with the results
   int finalViews = 4;                    // ... for the first this many views
