@@ -162,9 +162,13 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
     std::cout << ", bounds [" << sl.lower << ", " << sl.upper << "], learning rate " << sl.learningRate << "\n";
   }
   const auto& g = p.gradient;
-  std::cout << "estimators:\n"
-            << "  primal and derivative: direct illumination, interior term only (Wang et al. 2023, Eq. 12-13),\n"
-            << "    independent primal and derivative passes (" << g.sppPrimal << " + " << g.sppGradient << " spp)\n"
+  std::cout << "estimators:\n";
+  if (g.maxDepth > 1)
+    std::cout << "  primal and derivative: path tracing up to " << g.maxDepth << " vertices with NEE + MIS and Russian roulette,\n"
+              << "    derivatives by path replay (constant memory), interior term only\n";
+  else
+    std::cout << "  primal and derivative: direct illumination, interior term only (Wang et al. 2023, Eq. 12-13)\n";
+  std::cout << "    independent primal and derivative passes (" << g.sppPrimal << " + " << g.sppGradient << " spp)\n"
             << "  light sampling: " << gradientMethodName(g.method);
   if (g.method != GradientMethod::Pt)
     std::cout << " (" << g.restir.candidates << " candidates, visibility " << (g.restir.visibilityInTarget ? "in" : "not in") << " the target)";

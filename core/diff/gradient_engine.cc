@@ -7,7 +7,9 @@
 #include <chrono>
 #include <mutex>
 
+#include "core/diff/bsdf_adjoint.h"
 #include "core/diff/gradient_sink.h"
+#include "core/diff/path_replay.h"
 #include "core/error.h"
 
 namespace invr {
@@ -121,6 +123,9 @@ GradientEngine::GradientEngine(Scene& scene, const ParameterRegistry& params, st
   if (opt_.sppPrimal <= 0 || opt_.sppGradient <= 0) throw InputError("spp_primal and spp_gradient must be positive");
   if (opt_.restir.candidates <= 0) throw InputError("ris_candidates must be positive");
   if (!(opt_.radiusPixels > 0.f)) throw InputError("restir radius_pixels must be positive");
+  if (opt_.maxDepth < 1) throw InputError("max_depth must be at least 1");
+  if (opt_.maxDepth > 1 && opt_.method != GradientMethod::Pt)
+    throw InputError("max_depth > 1 (path replay) needs method pt: NEE + MIS at every vertex");
 }
 
 struct GradientEngine::PassResult {
@@ -165,8 +170,22 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
           Rgb pixelAdjoint = adjoint ? adjoint->rgb(x, y) / float(spp) : Rgb(0.f);
           for (int s = 0; s < spp; ++s) {
             Sampler sampler(RngKey::withSample(pixelHash, uint64_t(s)));
-            CameraSample cs;
             Vec3 d = cam.direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
+            if (opt_.maxDepth > 1) {  // multi-bounce: path tracing, derivatives by path replay
+              PathReplaySettings prs;
+              prs.maxDepth = opt_.maxDepth;
+              Rgb v = pathReplayRadiance(scene_, cam.eye, d, sampler, prs, &rays);
+              if (!isFinite(v)) {
+                ++nonFinite;
+                continue;
+              }
+              acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
+              if (!gradient) continue;
+              pathReplayBackprop(scene_, params_, cam.eye, d, sampler, prs, v, pixelAdjoint, pathGrad, &rays);
+              tiles[size_t(tile)].commit(pathGrad);
+              continue;
+            }
+            CameraSample cs;
             ++rays.camera;
             SurfaceHit& hit = cs.surface;
             if (!scene_.intersect(cam.eye, d, hit)) {
@@ -254,36 +273,10 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
             // Backpropagate dL/dI through each path's parameter-dependent factors.
             for (int i = 0; i < cs.count; ++i) {
               const DirectPath& p = cs.paths[i];
-              if (p.throughBsdf && cs.material >= 0) {
-                const Material& mat = scene_.materials[size_t(cs.material)];
-                int aOff = params_.albedoOffset(cs.material), rOff = params_.roughnessOffset(cs.material);
-                if (aOff >= 0 || rOff >= 0) {
-                  Rgb adjEval = pixelAdjoint * p.weight * p.emission;
-                  Vec3 wo = Frame(hit.ns).toLocal(-d);
-                  BsdfDerivatives dd = cs.bsdf.evalDerivatives(wo, p.wiLocal);
-                  if (aOff >= 0) {
-                    Rgb g = adjEval * dd.dAlbedo;
-                    if (mat.albedo.isConstant()) {
-                      for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(aOff + c), g[c]);
-                    } else {
-                      int tw = mat.albedo.image()->width();
-                      mat.albedo.forEachTexel(hit.uv, [&](int tx2, int ty2, float w) {
-                        for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(aOff + (ty2 * tw + tx2) * 3 + c), g[c] * w);
-                      });
-                    }
-                  }
-                  if (rOff >= 0 && mat.roughness.evalScalar(hit.uv) > kMinAlpha) {
-                    float g = adjEval.x * dd.dAlpha.x + adjEval.y * dd.dAlpha.y + adjEval.z * dd.dAlpha.z;
-                    if (mat.roughness.isConstant()) {
-                      pathGrad.add(uint32_t(rOff), g);
-                    } else {
-                      int tw = mat.roughness.image()->width();
-                      mat.roughness.forEachTexel(hit.uv, [&](int tx2, int ty2, float w) {
-                        pathGrad.add(uint32_t(rOff + ty2 * tw + tx2), g * w);
-                      });
-                    }
-                  }
-                }
+              if (p.throughBsdf && hasBsdfParameters(params_, cs.material)) {
+                Vec3 wo = Frame(hit.ns).toLocal(-d);
+                addBsdfGradient(params_, scene_, cs.material, hit.uv, cs.bsdf.evalDerivatives(wo, p.wiLocal),
+                                pixelAdjoint * p.weight * p.emission, pathGrad);
               }
               int lOff = params_.intensityOffset(int(p.light.light));
               if (lOff >= 0 && p.emissionPerUnit > 0.f) {

@@ -36,6 +36,9 @@ struct GradientOptions {
   int sppPrimal = 1;
   int sppGradient = 1;
   LossKind loss = LossKind::L2;
+  // Path vertices after the camera. 1: direct illumination with the method's light sampling;
+  // > 1: path tracing with NEE + MIS at every vertex, differentiated by path replay (method pt).
+  int maxDepth = 1;
 };
 
 struct GradientRequest {

@@ -87,6 +87,10 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   p.burnIn = p.gradient.method == GradientMethod::Restir ? r.burn_in() : 0;
   p.gradient.forwardOnly = r.forward_only();
   p.gradient.preserveOccluded = !r.discard_occluded();
+  if (o.max_depth() < 0 || o.max_depth() > 64) fail("max_depth", "must be in 1..64 (got " + std::to_string(o.max_depth()) + ")");
+  p.gradient.maxDepth = std::max(1, o.max_depth());
+  if (p.gradient.maxDepth > 1 && p.gradient.method != GradientMethod::Pt)
+    fail("max_depth", "paths longer than direct illumination are differentiated by path replay with NEE + MIS at every vertex: set method METHOD_PT");
   int views = int(p.scene->cameras.size());
   if (o.views_per_step() < 0 || o.views_per_step() > views)
     fail("views_per_step", "must be in 1.." + std::to_string(views) + " (the scene has " + std::to_string(views) + " views)");
@@ -138,6 +142,10 @@ Image renderTarget(Problem& p, int view) {
   ro.estimator = LightEstimator::Ris;
   ro.risCandidates = 16;
   ro.risVisibilityInTarget = true;
+  if (p.gradient.maxDepth > 1) {  // the same light transport as the gradients: NEE + MIS paths
+    ro.maxDepth = p.gradient.maxDepth;
+    ro.estimator = LightEstimator::NeeMis;
+  }
   ro.seed = mix64(p.seed ^ 0x7a26e7u);
   return renderView(*p.scene, view, ro).image;
 }

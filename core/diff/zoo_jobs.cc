@@ -38,7 +38,11 @@ v1::JobSpec zooJob(const std::string& name) {
     param(o, "materials/painting/albedo", 0.5, 0.005);
     o->set_steps(300);
   } else if (name == "mirror") {
+    // The objects reach the image through the glossy mirror: gradients need paths of at least
+    // three vertices (camera, mirror, object, light), differentiated by path replay.
     param(o, "materials/mirror/roughness", 0.3, 0.01);
+    o->set_method(v1::METHOD_PT);
+    o->set_max_depth(3);
   } else if (name == "backlit") {
     param(o, "materials/object/albedo", 0.5, 0.02);
     o->set_views_per_step(4);

@@ -30,4 +30,32 @@ inline constexpr const char* kDiffScene = R"({
   "film": {"width": 32, "height": 24}
 })";
 
+// Seen through a glossy mirror only: a textured wall and a glossy sphere behind the camera, lit
+// by an area light (also behind the camera) and a dim environment. Multi-bounce derivatives:
+// the wall's albedo and the sphere's roughness reach the image only after a reflection. 40x30.
+inline constexpr const char* kReflectionScene = R"({
+  "materials": [
+    {"name": "mirror", "rough_conductor": {"roughness": {"value": 0.25}}},
+    {"name": "wall", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 4,
+      "color_a": {"r": 0.75, "g": 0.6, "b": 0.45}, "color_b": {"r": 0.25, "g": 0.35, "b": 0.5}}}}},
+    {"name": "gloss", "rough_conductor": {"roughness": {"value": 0.3}}},
+    {"name": "lamp", "diffuse": {"albedo": {"value": 0.5}}}
+  ],
+  "shapes": [
+    {"name": "mirror", "material": "mirror", "quad": {}, "transform": {"scale": {"x": 1.6, "y": 1.2, "z": 1}}},
+    {"name": "wall", "material": "wall", "quad": {},
+     "transform": {"scale": {"x": 2.5, "y": 2, "z": 1}, "rotate_xyz_degrees": {"y": 180}, "translate": {"z": 6}}},
+    {"name": "ball", "material": "gloss", "sphere": {},
+     "transform": {"scale": {"x": 0.8, "y": 0.8, "z": 0.8}, "translate": {"x": 0.6, "y": -0.4, "z": 4.6}}},
+    {"name": "lamp", "material": "lamp", "quad": {},
+     "transform": {"scale": {"x": 0.4, "y": 0.4, "z": 1}, "rotate_xyz_degrees": {"x": -20}, "translate": {"y": 1.7, "z": 3.6}}}
+  ],
+  "lights": [
+    {"name": "lamp", "area": {"shape": "lamp", "radiance": {"r": 20, "g": 20, "b": 17}}},
+    {"name": "sky", "constant_environment": {"radiance": {"r": 0.05, "g": 0.05, "b": 0.06}}}
+  ],
+  "views": [{"eye": {"z": 3.5}, "target": {}, "fov_y_degrees": 40}],
+  "film": {"width": 40, "height": 30}
+})";
+
 }  // namespace invr::test
