@@ -12,5 +12,6 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode);
 void addOptimizeCommands(CLI::App& app, int& exitCode);
 void addServiceCommands(CLI::App& app, int& exitCode);  // run, submit, watch, status, list, cancel, fetch, plan
 void addBenchServiceCommand(CLI::App& bench, int& exitCode);
+void addBenchPixelCommand(CLI::App& bench, int& exitCode);
 
 }  // namespace invr::cli

@@ -175,6 +175,13 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
   if (g.method == GradientMethod::Restir)
     std::cout << "; reuse: " << g.restir.neighbours << " neighbour(s) within " << g.radiusPixels << " px, M-cap " << g.restir.mCap
               << ", burn-in " << p.burnIn << (g.forwardOnly ? ", forward only" : "");
+  std::cout << "\n  pixels: " << pixelSamplerName(g.pixels.sampler);
+  if (g.pixels.sampler != PixelSampler::All)
+    std::cout << " mini-batch of " << (g.pixels.samplesPerView > 0 ? g.pixels.samplesPerView : int(pixels / 4))
+              << " pixel samples per view, weighted 1/(N p), defensive uniform share " << g.pixels.defensive;
+  if (g.pixels.sampler == PixelSampler::LossGrad || g.pixels.sampler == PixelSampler::Adaptive)
+    std::cout << "; stage-1 maps every " << g.pixels.refreshEvery << " steps (every " << g.pixels.stage1Stride
+              << "nd pixel, 1 sample, edge-aware upsampling" << (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) << ")";
   std::cout << "\n  boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility\n"
             << "    discontinuity moves with them\n"
             << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd") << ", " << p.steps

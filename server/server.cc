@@ -934,10 +934,12 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           sp.set_render_seconds(sp.render_seconds() + r->seconds_primal());
           sp.set_derivative_seconds(sp.derivative_seconds() + r->seconds_derivative());
           sp.set_reservoir_seconds(sp.reservoir_seconds() + r->seconds_reservoir());
+          sp.set_stage1_seconds(sp.stage1_seconds() + r->seconds_stage1());
           sp.set_reservoirs(sp.reservoirs() + r->reservoirs());
           sp.set_mean_m(std::max(sp.mean_m(), r->mean_m()));
           sp.set_mean_neighbours(std::max(sp.mean_neighbours(), r->mean_neighbours()));
-          slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session());
+          slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session() +
+                                          r->seconds_stage1());
         }
         ++step;
         checkDivergence(p, step, sum.stats.loss, theta);

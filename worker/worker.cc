@@ -303,6 +303,7 @@ class Worker {
       res.set_seconds_primal(g.stats.secondsPrimal);
       res.set_seconds_derivative(g.stats.secondsDerivative);
       res.set_seconds_reservoir(g.stats.secondsReservoirUpdate);
+      res.set_seconds_stage1(g.stats.secondsStage1);
       res.set_non_finite(g.stats.nonFiniteSamples);
       res.set_reservoirs(g.stats.reservoirs);
       res.set_mean_m(g.stats.meanM);

@@ -11,6 +11,7 @@
 #include "core/diff/gradient_sink.h"
 #include "core/diff/path_replay.h"
 #include "core/error.h"
+#include "core/render/renderer.h"
 
 namespace invr {
 
@@ -31,7 +32,8 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-enum Pass { kPrimal = 0, kDerivative = 1 };
+// Stage-1 passes (pixel-sampling maps) draw on random streams of their own.
+enum Pass { kPrimal = 0, kDerivative = 1, kStage1Primal = 2, kStage1Derivative = 3 };
 
 // Everything one camera sample produces.
 struct CameraSample {
@@ -139,9 +141,11 @@ struct GradientEngine::PassResult {
 // `adjoint` (dL/dI) into `gradient`. `store` (if set) receives one reservoir per pixel sample.
 GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
                                                    std::vector<StoredReservoir>* store, const Image* adjoint,
-                                                   std::vector<double>* gradient) {
+                                                   std::vector<double>* gradient, const std::vector<float>* pixelWeights,
+                                                   std::vector<float>* derivSq) {
   const int W = scene_.width, H = scene_.height;
-  const int spp = pass == kPrimal ? opt_.sppPrimal : opt_.sppGradient;
+  const int spp = pass == kPrimal ? opt_.sppPrimal : pass == kDerivative ? opt_.sppGradient : 1;
+  const bool backprop = gradient || derivSq;
   const Camera& cam = scene_.cameras[size_t(view)];
   const bool useRestir = opt_.method == GradientMethod::Restir && !(pass == kDerivative && opt_.forwardOnly);
   const float pixelFootprint = opt_.radiusPixels * 2.f * cam.tanHalfFovY / float(H);  // world radius per unit distance
@@ -153,6 +157,17 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
   PassResult res;
   res.image = Image(W, H, 3);
   std::mutex mergeMutex;
+  // Stage 1 measures one path's squared parameter derivatives per pixel instead of summing them.
+  auto finishPath = [&](PathGradient& pg, int tile, uint64_t pixel) {
+    if (derivSq) {
+      double sq = 0;
+      for (const auto& e : pg.entries()) sq += double(e.second) * double(e.second);
+      if (std::isfinite(sq)) (*derivSq)[size_t(pixel)] += float(sq);
+      pg.clear();
+    } else {
+      tiles[size_t(tile)].commit(pg);
+    }
+  };
 
   tbb::parallel_for(tbb::blocked_range<int>(0, tilesX * tilesY), [&](const tbb::blocked_range<int>& range) {
     RayStats rays;
@@ -165,6 +180,11 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
       for (int y = ty * kTile; y < std::min(H, (ty + 1) * kTile); ++y)
         for (int x = tx * kTile; x < std::min(W, (tx + 1) * kTile); ++x) {
           const uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
+          if (pixelWeights && (*pixelWeights)[size_t(pixel)] == 0.f) {  // not in this mini-batch
+            if (store)
+              for (int s = 0; s < spp; ++s) (*store)[size_t(pixel) * size_t(spp) + size_t(s)].mesh = UINT32_MAX;
+            continue;
+          }
           const uint64_t pixelHash = RngKey{passSeed, req.step, uint64_t(view), pixel, 0}.pixelHash();
           double acc[3] = {0, 0, 0};
           Rgb pixelAdjoint = adjoint ? adjoint->rgb(x, y) / float(spp) : Rgb(0.f);
@@ -180,9 +200,9 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 continue;
               }
               acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
-              if (!gradient) continue;
+              if (!backprop) continue;
               pathReplayBackprop(scene_, params_, cam.eye, d, sampler, prs, v, pixelAdjoint, pathGrad, &rays);
-              tiles[size_t(tile)].commit(pathGrad);
+              finishPath(pathGrad, tile, pixel);
               continue;
             }
             CameraSample cs;
@@ -269,7 +289,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
               continue;
             }
             acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
-            if (!gradient) continue;
+            if (!backprop) continue;
             // Backpropagate dL/dI through each path's parameter-dependent factors.
             for (int i = 0; i < cs.count; ++i) {
               const DirectPath& p = cs.paths[i];
@@ -283,7 +303,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 Rgb g = pixelAdjoint * p.weight * p.bsdfValue * p.emissionPerUnit;
                 for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(lOff + c), g[c]);
               }
-              tiles[size_t(tile)].commit(pathGrad);
+              finishPath(pathGrad, tile, pixel);
             }
           }
           res.image.setRgb(x, y, Rgb(float(acc[0] / spp), float(acc[1] / spp), float(acc[2] / spp)));
@@ -329,6 +349,28 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   }
   st.secondsReservoirUpdate += secondsSince(t0);
 
+  // The pixel mini-batch of each view (Yan et al. 2025, stage 2), from maps refreshed by stage 1
+  // every `refreshEvery` steps and kept in the session.
+  const PixelSamplingOptions& po = opt_.pixels;
+  std::vector<std::vector<float>> weights;
+  if (po.sampler != PixelSampler::All) {
+    t0 = std::chrono::steady_clock::now();
+    const int n = po.samplesPerView > 0 ? po.samplesPerView : std::max<int>(1, int(pixels / 4));
+    for (int v : req.views) {
+      PixelMap& map = session.pixelMaps[v];
+      bool stale = !map.valid() || req.step >= map.computedAt + uint64_t(std::max(1, po.refreshEvery)) || req.step < map.computedAt;
+      bool measurable = size_t(v) < targets_.size() && !targets_[size_t(v)].empty();
+      if (po.sampler == PixelSampler::Uniform || !measurable) {
+        if (!map.valid()) map.p.assign(pixels, float(1.0 / double(pixels)));
+      } else if (stale) {
+        map = buildPixelMap(po, runStage1(v, req), req.step);
+      }
+      weights.push_back(drawPixelWeights(map.p, n, RngKey{req.seed, req.step, uint64_t(v), 0x9e1ec7u, 0}));
+    }
+    st.secondsStage1 = secondsSince(t0);
+  }
+  auto weightsOf = [&](size_t k) { return weights.empty() ? nullptr : &weights[k]; };
+
   // Primal pass: images, loss, dL/dI.
   t0 = std::chrono::steady_clock::now();
   std::vector<StoredReservoir> newPrimal, newDerivative;
@@ -341,7 +383,9 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   for (size_t k = 0; k < req.views.size(); ++k) {
     checkCancel();
     std::vector<StoredReservoir> store(restir ? pixels * size_t(opt_.sppPrimal) : 0);
-    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, restir ? &store : nullptr, nullptr, nullptr);
+    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, restir ? &store : nullptr, nullptr, nullptr,
+                            weightsOf(k));
+    st.pixelsTraced += weights.empty() ? pixels : size_t(std::count_if(weights[k].begin(), weights[k].end(), [](float w) { return w > 0.f; }));
     if (restir) std::move(store.begin(), store.end(), newPrimal.begin() + long(k * store.size()));
     st.rays += pr.rays;
     st.nonFiniteSamples += pr.nonFinite;
@@ -350,7 +394,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
     counters.sumM += pr.restir.sumM;
     if (!req.renderOnly) {
       int batch = req.batchViews > 0 ? req.batchViews : int(req.views.size());
-      double l = imageLoss(opt_.loss, pr.image, targets_[size_t(req.views[k])], &adjoints[k], batch);
+      double l = imageLoss(opt_.loss, pr.image, targets_[size_t(req.views[k])], &adjoints[k], batch, weightsOf(k));
       st.viewLoss.push_back(l * double(batch));
       st.loss += l;
     }
@@ -367,7 +411,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
       std::vector<StoredReservoir> store(restirDerivative ? pixels * size_t(opt_.sppGradient) : 0);
       PassResult pr = runPass(req.views[k], kDerivative, req, restirDerivative ? &session.derivative : nullptr,
                               restirDerivative ? &store : nullptr, req.renderOnly ? nullptr : &adjoints[k],
-                              req.renderOnly ? nullptr : &out.gradient);
+                              req.renderOnly ? nullptr : &out.gradient, weightsOf(k));
       if (restirDerivative) std::move(store.begin(), store.end(), newDerivative.begin() + long(k * store.size()));
       st.rays += pr.rays;
       st.nonFiniteSamples += pr.nonFinite;
@@ -409,6 +453,50 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
     st.meanM = counters.sumM / double(counters.shadingPoints);
   }
   return out;
+}
+
+Stage1 GradientEngine::runStage1(int view, const GradientRequest& req) {
+  Stage1 s;
+  s.width = scene_.width;
+  s.height = scene_.height;
+  s.stride = std::max(1, opt_.pixels.stage1Stride);
+  s.gw = (s.width + s.stride - 1) / s.stride;
+  s.gh = (s.height + s.stride - 1) / s.stride;
+  const size_t pixels = size_t(s.width) * size_t(s.height);
+  // One pixel per cell, at its centre.
+  std::vector<float> cellPixels(pixels, 0.f);
+  std::vector<size_t> cellPixel(size_t(s.gw) * size_t(s.gh));
+  for (int j = 0; j < s.gh; ++j)
+    for (int i = 0; i < s.gw; ++i) {
+      int x = std::min(s.width - 1, i * s.stride + s.stride / 2), y = std::min(s.height - 1, j * s.stride + s.stride / 2);
+      cellPixel[size_t(j * s.gw + i)] = size_t(y) * size_t(s.width) + size_t(x);
+      cellPixels[cellPixel[size_t(j * s.gw + i)]] = 1.f;
+    }
+  // dL/dI from one primal sample per cell (no reservoirs: stage 1 leaves the chains alone).
+  PassResult primal = runPass(view, kStage1Primal, req, nullptr, nullptr, nullptr, nullptr, &cellPixels);
+  Image adjoint;
+  imageLoss(opt_.loss, primal.image, targets_[size_t(view)], &adjoint, 1, &cellPixels);
+  // Squared parameter derivatives of one path per cell (Eq. 16), with a unit adjoint.
+  Image ones(s.width, s.height, 3);
+  for (size_t p : cellPixel)
+    for (int c = 0; c < 3; ++c) ones.data()[p * 3 + size_t(c)] = 1.f;
+  std::vector<float> derivSq(pixels, 0.f);
+  runPass(view, kStage1Derivative, req, nullptr, nullptr, &ones, nullptr, &cellPixels, &derivSq);
+  s.adjoint.resize(cellPixel.size() * 3);
+  s.derivSq.resize(cellPixel.size());
+  for (size_t c = 0; c < cellPixel.size(); ++c) {
+    for (int ch = 0; ch < 3; ++ch) s.adjoint[3 * c + size_t(ch)] = adjoint.data()[cellPixel[c] * 3 + size_t(ch)];
+    s.derivSq[c] = derivSq[cellPixel[c]];
+  }
+  // Guides for the edge-aware upsampling: first-hit normal and albedo.
+  Aovs aov = renderAovs(scene_, view);
+  s.guide.resize(pixels * 6);
+  for (size_t p = 0; p < pixels; ++p)
+    for (int c = 0; c < 3; ++c) {
+      s.guide[p * 6 + size_t(c)] = aov.normal.data()[p * size_t(aov.normal.channels()) + size_t(c)];
+      s.guide[p * 6 + 3 + size_t(c)] = aov.albedo.data()[p * size_t(aov.albedo.channels()) + size_t(c)];
+    }
+  return s;
 }
 
 }  // namespace invr

@@ -13,10 +13,12 @@
 #pragma once
 
 #include <atomic>
+#include <map>
 #include <vector>
 
 #include "core/diff/loss.h"
 #include "core/diff/parameters.h"
+#include "core/diff/pixel_sampler.h"
 #include "core/restir/direct_restir.h"
 
 namespace invr {
@@ -39,6 +41,7 @@ struct GradientOptions {
   // Path vertices after the camera. 1: direct illumination with the method's light sampling;
   // > 1: path tracing with NEE + MIS at every vertex, differentiated by path replay (method pt).
   int maxDepth = 1;
+  PixelSamplingOptions pixels;  // which pixels a step traces (all, or a mini-batch)
 };
 
 struct GradientRequest {
@@ -62,6 +65,8 @@ struct GradientStats {
   double loss = 0.0;
   std::vector<double> viewLoss;
   double secondsPrimal = 0, secondsDerivative = 0, secondsReservoirUpdate = 0;
+  double secondsStage1 = 0;   // pixel-sampling maps (when refreshed this step)
+  uint64_t pixelsTraced = 0;  // distinct pixels traced by the primal pass
   uint64_t nonFiniteSamples = 0;  // primal samples and derivative paths dropped
   size_t reservoirs = 0, reservoirsPreserved = 0;
   double meanNeighbours = 0, meanM = 0;
@@ -77,6 +82,7 @@ struct GradientResult {
 // Per-job state that survives between steps (the worker's session cache): reservoir chains.
 struct EngineSession {
   ReservoirStore primal, derivative;
+  std::map<int, PixelMap> pixelMaps;  // per view: the pixel-sampling probabilities
 };
 
 class GradientEngine {
@@ -91,7 +97,11 @@ class GradientEngine {
  private:
   struct PassResult;
   PassResult runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
-                     std::vector<StoredReservoir>* store, const Image* adjoint, std::vector<double>* gradient);
+                     std::vector<StoredReservoir>* store, const Image* adjoint, std::vector<double>* gradient,
+                     const std::vector<float>* pixelWeights = nullptr, std::vector<float>* derivSq = nullptr);
+  // Stage 1 of pixel sampling for one view: one path per cell of a sparse grid, primal and
+  // derivative, plus first-hit guides (see pixel_sampler.h).
+  Stage1 runStage1(int view, const GradientRequest& req);
 
   Scene& scene_;
   const ParameterRegistry& params_;

@@ -21,7 +21,7 @@ const char* lossName(LossKind k) {
   }
 }
 
-double imageLoss(LossKind kind, const Image& I, const Image& T, Image* adjoint, int viewsInBatch) {
+double imageLoss(LossKind kind, const Image& I, const Image& T, Image* adjoint, int viewsInBatch, const std::vector<float>* weights) {
   if (I.width() != T.width() || I.height() != T.height())
     throw InputError("target image is " + std::to_string(T.width()) + "x" + std::to_string(T.height()) + ", render is " +
                      std::to_string(I.width()) + "x" + std::to_string(I.height()));
@@ -29,7 +29,9 @@ double imageLoss(LossKind kind, const Image& I, const Image& T, Image* adjoint, 
   const double norm = 1.0 / (double(n) * 3.0 * viewsInBatch);
   if (adjoint) *adjoint = Image(I.width(), I.height(), 3);
   double sum = 0;
-  for (size_t p = 0; p < n; ++p)
+  for (size_t p = 0; p < n; ++p) {
+    const double w = weights ? double((*weights)[p]) : 1.0;
+    if (w == 0.0) continue;
     for (int c = 0; c < 3; ++c) {
       double i = I.data()[p * size_t(I.channels()) + size_t(c)];
       double t = T.data()[p * size_t(T.channels()) + size_t(std::min(c, T.channels() - 1))];
@@ -39,9 +41,10 @@ double imageLoss(LossKind kind, const Image& I, const Image& T, Image* adjoint, 
         case LossKind::RelativeL2: { double w = 1.0 / (t * t + 0.01); l = d * d * w; g = 2 * d * w; break; }
         default: l = std::abs(d); g = d > 0 ? 1.0 : (d < 0 ? -1.0 : 0.0); break;
       }
-      sum += l;
-      if (adjoint) adjoint->data()[p * 3 + size_t(c)] = float(g * norm);
+      sum += w * l;
+      if (adjoint) adjoint->data()[p * 3 + size_t(c)] = float(w * g * norm);
     }
+  }
   return sum * norm;
 }
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "core/image/image.h"
 
@@ -19,6 +20,9 @@ const char* lossName(LossKind kind);
 // Loss of `rendered` against `target` (same size, 3 channels). If adjoint is non-null it receives
 // dLoss/dI per pixel and channel (already divided by the pixel and channel count, and by
 // viewsInBatch so mini-batch means come out right).
-double imageLoss(LossKind kind, const Image& rendered, const Image& target, Image* adjoint, int viewsInBatch = 1);
+// With pixelWeights (one per pixel, e.g. count / (N p) of a pixel mini-batch), pixels of weight 0
+// are skipped and the others weighted: an unbiased estimate of the full loss and its adjoint.
+double imageLoss(LossKind kind, const Image& rendered, const Image& target, Image* adjoint, int viewsInBatch = 1,
+                 const std::vector<float>* pixelWeights = nullptr);
 
 }  // namespace invr

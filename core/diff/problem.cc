@@ -91,6 +91,19 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   p.gradient.maxDepth = std::max(1, o.max_depth());
   if (p.gradient.maxDepth > 1 && p.gradient.method != GradientMethod::Pt)
     fail("max_depth", "paths longer than direct illumination are differentiated by path replay with NEE + MIS at every vertex: set method METHOD_PT");
+  try {
+    p.gradient.pixels.sampler = pixelSamplerFromName(o.pixel_sampler().empty() ? "all" : o.pixel_sampler());
+  } catch (const InputError& e) {
+    fail("pixel_sampler", e.what());
+  }
+  const int filmPixels = p.scene->width * p.scene->height;
+  if (o.pixel_samples() < 0 || o.pixel_samples() > 16 * filmPixels)
+    fail("pixel_samples", "must be in 1.." + std::to_string(16 * filmPixels) + " (got " + std::to_string(o.pixel_samples()) + ")");
+  p.gradient.pixels.samplesPerView = o.pixel_samples();
+  if (!(o.pixel_defensive() >= 0 && o.pixel_defensive() <= 1))
+    fail("pixel_defensive", "must be in (0, 1]: every pixel needs a probability above zero");
+  p.gradient.pixels.defensive = o.pixel_defensive() > 0 ? float(o.pixel_defensive()) : 0.2f;
+  p.gradient.pixels.refreshEvery = positive("pixel_refresh", o.pixel_refresh(), 20, 100000);
   int views = int(p.scene->cameras.size());
   if (o.views_per_step() < 0 || o.views_per_step() > views)
     fail("views_per_step", "must be in 1.." + std::to_string(views) + " (the scene has " + std::to_string(views) + " views)");

@@ -58,4 +58,30 @@ inline constexpr const char* kReflectionScene = R"({
   "film": {"width": 40, "height": 30}
 })";
 
+// A caustic: a small bright lamp above a glass sphere that focuses it onto a textured floor.
+// Stage 1's one-sample estimate misses most of the caustic, so pixel sampling must stay unbiased
+// through its defensive mixture. 32x24; needs paths of 4+ vertices.
+inline constexpr const char* kCausticScene = R"({
+  "materials": [
+    {"name": "floor", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 4,
+      "color_a": {"r": 0.8, "g": 0.75, "b": 0.7}, "color_b": {"r": 0.4, "g": 0.45, "b": 0.5}}}}},
+    {"name": "glass", "dielectric": {"ior": 1.5}},
+    {"name": "lamp", "diffuse": {"albedo": {"value": 0.5}}}
+  ],
+  "shapes": [
+    {"name": "floor", "material": "floor", "quad": {},
+     "transform": {"scale": {"x": 2, "y": 2, "z": 1}, "rotate_xyz_degrees": {"x": -90}}},
+    {"name": "ball", "material": "glass", "sphere": {},
+     "transform": {"scale": {"x": 0.5, "y": 0.5, "z": 0.5}, "translate": {"y": 0.8}}},
+    {"name": "lamp", "material": "lamp", "quad": {},
+     "transform": {"scale": {"x": 1.0, "y": 1.0, "z": 1}, "rotate_xyz_degrees": {"x": 90}, "translate": {"y": 2.5}}}
+  ],
+  "lights": [
+    {"name": "lamp", "area": {"shape": "lamp", "radiance": {"r": 12, "g": 11.5, "b": 11}}},
+    {"name": "sky", "constant_environment": {"radiance": {"r": 0.05, "g": 0.05, "b": 0.06}}}
+  ],
+  "views": [{"eye": {"y": 2.2, "z": 2.6}, "target": {"y": 0.2}, "fov_y_degrees": 45}],
+  "film": {"width": 32, "height": 24}
+})";
+
 }  // namespace invr::test

@@ -1,0 +1,15 @@
+// loss_grad pixel sampling (Su & Gkioulekas 2024): p_j proportional to |dL/dI_j|, from stage 1.
+#include "core/diff/pixel_sampler.h"
+
+#include <cmath>
+
+namespace invr {
+
+std::vector<float> lossGradMap(const Stage1& s) {
+  std::vector<float> cells(size_t(s.gw) * size_t(s.gh));
+  for (size_t i = 0; i < cells.size(); ++i)
+    cells[i] = std::abs(s.adjoint[3 * i]) + std::abs(s.adjoint[3 * i + 1]) + std::abs(s.adjoint[3 * i + 2]);
+  return cells;
+}
+
+}  // namespace invr

@@ -1,0 +1,104 @@
+#include "core/diff/pixel_sampler.h"
+
+#include <cmath>
+
+#include "core/error.h"
+#include "core/math/sampling.h"
+
+namespace invr {
+
+PixelSampler pixelSamplerFromName(const std::string& name) {
+  if (name == "all") return PixelSampler::All;
+  if (name == "uniform") return PixelSampler::Uniform;
+  if (name == "loss_grad") return PixelSampler::LossGrad;
+  if (name == "adaptive") return PixelSampler::Adaptive;
+  throw InputError("unknown pixel sampler '" + name + "' (use all, uniform, loss_grad or adaptive)");
+}
+
+const char* pixelSamplerName(PixelSampler s) {
+  switch (s) {
+    case PixelSampler::All: return "all";
+    case PixelSampler::Uniform: return "uniform";
+    case PixelSampler::LossGrad: return "loss_grad";
+    default: return "adaptive";
+  }
+}
+
+std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& cells) {
+  const int W = s.width, H = s.height;
+  auto cellOf = [&](int x, int y) {
+    int i = std::min(s.gw - 1, x / s.stride), j = std::min(s.gh - 1, y / s.stride);
+    return size_t(j * s.gw + i);
+  };
+  std::vector<float> up(size_t(W) * size_t(H));
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) up[size_t(y * W + x)] = cells[cellOf(x, y)];
+  if (s.guide.empty()) return up;
+  // Cross-bilateral: neighbours count in proportion to how alike their normal and albedo are,
+  // so probability mass does not bleed across object and texture edges.
+  std::vector<float> out(up.size());
+  constexpr int R = 2;
+  constexpr float kSpatial = 1.f / (2.f * 1.5f * 1.5f), kGuide = 1.f / (2.f * 0.1f * 0.1f);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const float* g0 = &s.guide[size_t(y * W + x) * 6];
+      double sum = 0, wsum = 0;
+      for (int dy = -R; dy <= R; ++dy)
+        for (int dx = -R; dx <= R; ++dx) {
+          int xx = x + dx, yy = y + dy;
+          if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
+          const float* g1 = &s.guide[size_t(yy * W + xx) * 6];
+          float dg = 0;
+          for (int k = 0; k < 6; ++k) dg += (g0[k] - g1[k]) * (g0[k] - g1[k]);
+          float w = std::exp(-float(dx * dx + dy * dy) * kSpatial - dg * kGuide);
+          sum += double(w) * double(up[size_t(yy * W + xx)]);
+          wsum += double(w);
+        }
+      out[size_t(y * W + x)] = float(sum / wsum);
+    }
+  return out;
+}
+
+std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive) {
+  const size_t n = map.size();
+  double total = 0;
+  for (float v : map)
+    if (std::isfinite(v) && v > 0.f) total += double(v);
+  std::vector<float> p(n);
+  const double uniform = 1.0 / double(n);
+  if (!(total > 0.0)) {
+    std::fill(p.begin(), p.end(), float(uniform));
+    return p;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    double v = std::isfinite(map[i]) && map[i] > 0.f ? double(map[i]) / total : 0.0;
+    p[i] = float((1.0 - double(defensive)) * v + double(defensive) * uniform);
+  }
+  return p;
+}
+
+PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step) {
+  PixelMap m;
+  m.computedAt = step;
+  const size_t n = size_t(s.width) * size_t(s.height);
+  switch (o.sampler) {
+    case PixelSampler::LossGrad: m.p = defensiveMixture(upsampleEdgeAware(s, lossGradMap(s)), o.defensive); break;
+    case PixelSampler::Adaptive: m.p = defensiveMixture(upsampleEdgeAware(s, adaptiveMap(s, o.levels)), o.defensive); break;
+    default: m.p.assign(n, float(1.0 / double(n))); break;
+  }
+  return m;
+}
+
+std::vector<float> drawPixelWeights(const std::vector<float>& p, int n, RngKey key) {
+  Distribution1D dist(p);
+  std::vector<float> w(p.size(), 0.f);
+  Sampler sampler(key);
+  for (int i = 0; i < n; ++i) {
+    size_t j = dist.sample(sampler.next1D());
+    // The distribution normalises p itself; use its pmf so the weights match what was drawn.
+    w[j] += 1.f / (float(n) * dist.pmf(j));
+  }
+  return w;
+}
+
+}  // namespace invr

@@ -1,0 +1,74 @@
+// Image-space pixel sampling for mini-batch gradients (Yan et al. 2025). A step draws N pixel
+// samples per view from probabilities p_j and weights pixel j by count_j / (N p_j), so the
+// mini-batch gradient equals the full-image gradient in expectation whatever p is, as long as
+// every p_j > 0: a defensive mixture with uniform guarantees that even where the stage-1 estimate
+// is unreliable (caustics).
+//
+//   all       every pixel, every step (no mini-batch)
+//   uniform   p_j = 1 / P
+//   loss_grad p_j ~ |dL/dI_j|                        (Su & Gkioulekas 2024)      loss_grad_sampler.cc
+//   adaptive  p_j ~ sqrt(p_j1 p_j2) (Eq. 12): p_j1 from (dL/dI_j)^2, p_j2 from the per-path sum of
+//             squared parameter derivatives (Eq. 16); over D resolution levels (Eq. 18)  adaptive_sampler.cc
+//
+// Stage 1 (the maps) runs on a sparse grid of pixels with one sample each, every `refreshEvery`
+// steps; its values are upsampled and smoothed with an edge-aware (cross-bilateral) filter guided
+// by the first-hit normal and albedo before they become probabilities.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math/rng.h"
+
+namespace invr {
+
+enum class PixelSampler { All, Uniform, LossGrad, Adaptive };
+PixelSampler pixelSamplerFromName(const std::string& name);  // throws InputError
+const char* pixelSamplerName(PixelSampler s);
+
+struct PixelSamplingOptions {
+  PixelSampler sampler = PixelSampler::All;
+  int samplesPerView = 0;     // N: pixel samples drawn per view and step (0: a quarter of the pixels)
+  float defensive = 0.2f;     // weight of the uniform component of the mixture
+  int refreshEvery = 20;      // steps between stage-1 refreshes
+  int stage1Stride = 2;       // stage 1 traces every stride-th pixel in x and y
+  int levels = 4;             // D of Eq. 18 (adaptive)
+};
+
+// Stage-1 measurements on the sparse grid (gw x gh cells, cell (i, j) at pixel
+// (i*stride + stride/2, j*stride + stride/2)), and the guides for the edge-aware upsampling.
+struct Stage1 {
+  int gw = 0, gh = 0, stride = 1;
+  std::vector<float> adjoint;     // per cell, 3 channels: dL/dI at the cell's pixel (one sample)
+  std::vector<float> derivSq;     // per cell: sum over the path's parameter derivatives squared
+  std::vector<float> guide;       // full resolution, 6 per pixel: first-hit normal and albedo
+  int width = 0, height = 0;
+};
+
+// Per-view probabilities at full resolution (sum to 1, all > 0), and when they were computed.
+struct PixelMap {
+  std::vector<float> p;
+  uint64_t computedAt = 0;
+  bool valid() const { return !p.empty(); }
+};
+
+// Cell values -> full-resolution non-negative map: nearest-cell upsampling, then a 5x5
+// cross-bilateral filter guided by `guide` (edges of normals and albedo are kept).
+std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& cells);
+
+// The defensive mixture: (1 - defensive) * map / sum(map) + defensive / P. A map with no mass
+// (all zero, non-finite) falls back to uniform.
+std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive);
+
+std::vector<float> lossGradMap(const Stage1& s);                // loss_grad_sampler.cc
+std::vector<float> adaptiveMap(const Stage1& s, int levels);    // adaptive_sampler.cc
+
+// The sampler's probabilities from a stage-1 measurement (uniform needs none).
+PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step);
+
+// Draws N pixel samples from p with counter-based randomness; returns per-pixel weights
+// count_j / (N p_j) (zero for pixels not drawn).
+std::vector<float> drawPixelWeights(const std::vector<float>& p, int n, RngKey key);
+
+}  // namespace invr
