@@ -219,6 +219,8 @@ struct ReconstructArgs {
   std::string optimizer;   // override the scene job's optimizer
   double learningRate = 0; // override every parameter's learning rate
   std::string csv = "reconstruct.csv";
+  std::vector<std::string> pixelSamplers;  // compare these pixel samplers instead of light sampling
+  int pixelSamples = 0;
   bool json = false;
 };
 
@@ -238,19 +240,35 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   BenchReport rep("reconstruct");
   rep.text("scene", a.scene);
   rep.number("seconds_per_method", a.seconds, "s");
-  std::vector<double> errors(3);
-  for (int mi = 0; mi < 3; ++mi) {
-    GradientMethod m = kMethods[mi];
-    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, m, 1));
+  // Variants: the three light-sampling methods, or (--pixel-samplers) the listed pixel samplers
+  // with the job's own method.
+  struct Variant {
+    std::string name;
+    GradientOptions options;
+  };
+  std::vector<Variant> variants;
+  if (a.pixelSamplers.empty()) {
+    for (GradientMethod m : kMethods) variants.push_back({gradientMethodName(m), optionsFor(s.problem, m, 1)});
+  } else {
+    for (const auto& name : a.pixelSamplers) {
+      GradientOptions o = s.problem.gradient;
+      o.pixels.sampler = pixelSamplerFromName(name);
+      if (a.pixelSamples > 0) o.pixels.samplesPerView = a.pixelSamples;
+      variants.push_back({name, o});
+    }
+  }
+  std::vector<double> errors;
+  for (const Variant& v : variants) {
+    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, v.options);
     EngineSession session;
     std::vector<float> theta = s.problem.initial;
     OptimizerState state;
     auto t0 = Clock::now();
     uint64_t step = 0;
-    std::string name = gradientMethodName(m);
+    const std::string& name = v.name;
     csv << name << ",0,0," << "," << parameterError(s.problem, theta) << "\n";
     // The burn-in counts against ReSTIR's time budget.
-    int burn = m == GradientMethod::Restir ? s.problem.burnIn : 0;
+    int burn = v.options.method == GradientMethod::Restir ? s.problem.burnIn : 0;
     for (int b = 0; b < burn; ++b) {
       GradientRequest rb;
       rb.views = viewsForStep(s.problem, step);
@@ -270,15 +288,26 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       ++steps;
       csv << name << "," << steps << "," << since(t0) << "," << res.stats.loss << "," << parameterError(s.problem, theta) << "\n";
     }
-    errors[size_t(mi)] = parameterError(s.problem, theta);
+    errors.push_back(parameterError(s.problem, theta));
     rep.number("steps_" + name, steps);
   }
-  rep.raw("param_error", "{\"pt\": " + BenchReport::fmt(errors[0]) + ", \"ris\": " + BenchReport::fmt(errors[1]) +
-                             ", \"restir\": " + BenchReport::fmt(errors[2]) + "}",
-          "pt " + BenchReport::fmt(errors[0]) + ", ris " + BenchReport::fmt(errors[1]) + ", restir " + BenchReport::fmt(errors[2]) +
-              " (RMSE of the parameters)");
-  rep.number("ratio_pt_over_restir", errors[0] / errors[2], "(target >= 3)");
-  rep.number("ratio_ris_over_restir", errors[1] / errors[2]);
+  std::string js = "{", shown;
+  for (size_t i = 0; i < variants.size(); ++i) {
+    js += std::string(i ? ", " : "") + "\"" + variants[i].name + "\": " + BenchReport::fmt(errors[i]);
+    shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(errors[i]);
+  }
+  rep.raw("param_error", js + "}", shown + " (RMSE of the parameters)");
+  auto indexOf = [&](const std::string& n) {
+    for (size_t i = 0; i < variants.size(); ++i)
+      if (variants[i].name == n) return int(i);
+    return -1;
+  };
+  if (indexOf("pt") >= 0 && indexOf("restir") >= 0) {
+    rep.number("ratio_pt_over_restir", errors[size_t(indexOf("pt"))] / errors[size_t(indexOf("restir"))], "(target >= 3)");
+    rep.number("ratio_ris_over_restir", errors[size_t(indexOf("ris"))] / errors[size_t(indexOf("restir"))]);
+  }
+  if (indexOf("uniform") >= 0 && indexOf("adaptive") >= 0)
+    rep.number("ratio_uniform_over_adaptive", errors[size_t(indexOf("uniform"))] / errors[size_t(indexOf("adaptive"))]);
   rep.text("csv", a.csv);
   rep.print(a.json);
 }
@@ -307,12 +336,15 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   o->callback([oa, &exitCode] { runBenchOverhead(*oa); exitCode = 0; });
 
   auto ra = std::make_shared<ReconstructArgs>();
-  auto* rc = bench.add_subcommand("reconstruct", "Equal-time reconstruction of the scene's parameters: PT, RIS, ReSTIR");
+  auto* rc = bench.add_subcommand("reconstruct", "Equal-time reconstruction of the scene's parameters: PT, RIS, ReSTIR (or pixel samplers)");
   rc->add_option("--scene", ra->scene, "zoo scene")->capture_default_str();
   rc->add_option("--seconds", ra->seconds, "wall time per method")->capture_default_str();
   rc->add_option("--loss", ra->loss, "override the loss (l2, relative_l2, l1)");
   rc->add_option("--lr", ra->learningRate, "override every parameter's learning rate");
   rc->add_option("--optimizer", ra->optimizer, "override the optimizer (adam, sgd)");
+  rc->add_option("--pixel-samplers", ra->pixelSamplers, "compare these pixel samplers (all, uniform, loss_grad, adaptive) with the job's method")
+      ->delimiter(',');
+  rc->add_option("--pixel-samples", ra->pixelSamples, "pixel samples per view for the mini-batch samplers");
   rc->add_option("--csv", ra->csv, "convergence data (method, step, seconds, loss, param_error)")->capture_default_str();
   rc->add_flag("--json", ra->json, "print one JSON object");
   rc->callback([ra, &exitCode] { runBenchReconstruct(*ra); exitCode = 0; });

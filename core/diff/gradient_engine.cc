@@ -354,20 +354,20 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   const PixelSamplingOptions& po = opt_.pixels;
   std::vector<std::vector<float>> weights;
   if (po.sampler != PixelSampler::All) {
-    t0 = std::chrono::steady_clock::now();
     const int n = po.samplesPerView > 0 ? po.samplesPerView : std::max<int>(1, int(pixels / 4));
     for (int v : req.views) {
       PixelMap& map = session.pixelMaps[v];
       bool stale = !map.valid() || req.step >= map.computedAt + uint64_t(std::max(1, po.refreshEvery)) || req.step < map.computedAt;
       bool measurable = size_t(v) < targets_.size() && !targets_[size_t(v)].empty();
       if (po.sampler == PixelSampler::Uniform || !measurable) {
-        if (!map.valid()) map.p.assign(pixels, float(1.0 / double(pixels)));
+        if (!map.valid()) map.setProbabilities(std::vector<float>(pixels, float(1.0 / double(pixels))));
       } else if (stale) {
+        t0 = std::chrono::steady_clock::now();
         map = buildPixelMap(po, runStage1(v, req), req.step);
+        st.secondsStage1 += secondsSince(t0);
       }
-      weights.push_back(drawPixelWeights(map.p, n, RngKey{req.seed, req.step, uint64_t(v), 0x9e1ec7u, 0}));
+      weights.push_back(drawPixelWeights(map, n, RngKey{req.seed, req.step, uint64_t(v), 0x9e1ec7u, 0}));
     }
-    st.secondsStage1 = secondsSince(t0);
   }
   auto weightsOf = [&](size_t k) { return weights.empty() ? nullptr : &weights[k]; };
 

@@ -1,9 +1,10 @@
 #include "core/diff/pixel_sampler.h"
 
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 
 #include "core/error.h"
-#include "core/math/sampling.h"
 
 namespace invr {
 
@@ -39,7 +40,11 @@ std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& 
   std::vector<float> out(up.size());
   constexpr int R = 2;
   constexpr float kSpatial = 1.f / (2.f * 1.5f * 1.5f), kGuide = 1.f / (2.f * 0.1f * 0.1f);
-  for (int y = 0; y < H; ++y)
+  float spatial[2 * R + 1][2 * R + 1];
+  for (int dy = -R; dy <= R; ++dy)
+    for (int dx = -R; dx <= R; ++dx) spatial[dy + R][dx + R] = std::exp(-float(dx * dx + dy * dy) * kSpatial);
+  // Rows in parallel: each output pixel is written once, so the result does not depend on threads.
+  tbb::parallel_for(0, H, [&](int y) {
     for (int x = 0; x < W; ++x) {
       const float* g0 = &s.guide[size_t(y * W + x) * 6];
       double sum = 0, wsum = 0;
@@ -50,12 +55,14 @@ std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& 
           const float* g1 = &s.guide[size_t(yy * W + xx) * 6];
           float dg = 0;
           for (int k = 0; k < 6; ++k) dg += (g0[k] - g1[k]) * (g0[k] - g1[k]);
-          float w = std::exp(-float(dx * dx + dy * dy) * kSpatial - dg * kGuide);
+          // Guide weight exp(-dg k) by a rational stand-in: as edge-preserving, a fraction of the cost.
+          float w = spatial[dy + R][dx + R] / (1.f + dg * kGuide * (1.f + 0.5f * dg * kGuide));
           sum += double(w) * double(up[size_t(yy * W + xx)]);
           wsum += double(w);
         }
       out[size_t(y * W + x)] = float(sum / wsum);
     }
+  });
   return out;
 }
 
@@ -82,16 +89,16 @@ PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t 
   m.computedAt = step;
   const size_t n = size_t(s.width) * size_t(s.height);
   switch (o.sampler) {
-    case PixelSampler::LossGrad: m.p = defensiveMixture(upsampleEdgeAware(s, lossGradMap(s)), o.defensive); break;
-    case PixelSampler::Adaptive: m.p = defensiveMixture(upsampleEdgeAware(s, adaptiveMap(s, o.levels)), o.defensive); break;
-    default: m.p.assign(n, float(1.0 / double(n))); break;
+    case PixelSampler::LossGrad: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, lossGradMap(s)), o.defensive)); break;
+    case PixelSampler::Adaptive: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, adaptiveMap(s, o.levels)), o.defensive)); break;
+    default: m.setProbabilities(std::vector<float>(n, float(1.0 / double(n)))); break;
   }
   return m;
 }
 
-std::vector<float> drawPixelWeights(const std::vector<float>& p, int n, RngKey key) {
-  Distribution1D dist(p);
-  std::vector<float> w(p.size(), 0.f);
+std::vector<float> drawPixelWeights(const PixelMap& map, int n, RngKey key) {
+  const Distribution1D& dist = map.dist;
+  std::vector<float> w(map.p.size(), 0.f);
   Sampler sampler(key);
   for (int i = 0; i < n; ++i) {
     size_t j = dist.sample(sampler.next1D());

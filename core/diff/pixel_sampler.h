@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/math/rng.h"
+#include "core/math/sampling.h"
 
 namespace invr {
 
@@ -46,11 +47,17 @@ struct Stage1 {
   int width = 0, height = 0;
 };
 
-// Per-view probabilities at full resolution (sum to 1, all > 0), and when they were computed.
+// Per-view probabilities at full resolution (sum to 1, all > 0), ready to draw from, and when
+// they were computed.
 struct PixelMap {
   std::vector<float> p;
+  Distribution1D dist;
   uint64_t computedAt = 0;
   bool valid() const { return !p.empty(); }
+  void setProbabilities(std::vector<float> probabilities) {
+    p = std::move(probabilities);
+    dist = Distribution1D(p);
+  }
 };
 
 // Cell values -> full-resolution non-negative map: nearest-cell upsampling, then a 5x5
@@ -67,8 +74,8 @@ std::vector<float> adaptiveMap(const Stage1& s, int levels);    // adaptive_samp
 // The sampler's probabilities from a stage-1 measurement (uniform needs none).
 PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step);
 
-// Draws N pixel samples from p with counter-based randomness; returns per-pixel weights
+// Draws N pixel samples from the map with counter-based randomness; returns per-pixel weights
 // count_j / (N p_j) (zero for pixels not drawn).
-std::vector<float> drawPixelWeights(const std::vector<float>& p, int n, RngKey key);
+std::vector<float> drawPixelWeights(const PixelMap& map, int n, RngKey key);
 
 }  // namespace invr

@@ -113,7 +113,9 @@ TEST(PixelSampling, AdaptiveStaysUnbiasedOnACaustic) {
 TEST(PixelSampling, EveryPixelKeepsAProbabilityAndWeightsMatchTheDraws) {
   std::vector<float> map(100, 0.f);
   map[7] = 5.f;  // a map that would ignore all but one pixel
-  auto p = defensiveMixture(map, 0.2f);
+  PixelMap pm;
+  pm.setProbabilities(defensiveMixture(map, 0.2f));
+  const auto& p = pm.p;
   double sum = 0;
   for (float v : p) {
     EXPECT_GT(v, 0.f);
@@ -125,7 +127,7 @@ TEST(PixelSampling, EveryPixelKeepsAProbabilityAndWeightsMatchTheDraws) {
   std::vector<double> mean(100, 0.0);
   const int reps = 4000;
   for (int r = 0; r < reps; ++r) {
-    auto w = drawPixelWeights(p, 10, RngKey{1, uint64_t(r), 0, 0, 0});
+    auto w = drawPixelWeights(pm, 10, RngKey{1, uint64_t(r), 0, 0, 0});
     for (size_t j = 0; j < 100; ++j) mean[j] += w[j] / reps;
   }
   EXPECT_NEAR(mean[7], 1.0, 0.05);
