@@ -18,6 +18,7 @@ namespace {
 struct PixelBenchArgs {
   std::string scene = "mirror";
   int reps = 1024;
+  double defensive = 0;  // override the job's uniform share
   int samples = 0;  // pixel samples per view; 0: a fifth of the pixels (the paper: ~100K paths for 512^2)
   bool json = false;
 };
@@ -26,8 +27,9 @@ struct SamplerRun {
   double variance = 0, seconds = 0, stage1 = 0;
 };
 
-SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler sampler, int samples, int reps) {
+SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler sampler, int samples, int reps, double defensive) {
   GradientOptions o = p.gradient;
+  if (defensive > 0) o.pixels.defensive = float(defensive);
   o.pixels.sampler = sampler;
   o.pixels.samplesPerView = samples;
   GradientEngine engine(*p.scene, p.params, targets, o);
@@ -66,11 +68,12 @@ void run(const PixelBenchArgs& a) {
   rep.text("scene", a.scene);
   rep.number("pixel_samples_per_view", n);
   rep.number("repetitions", a.reps);
+  rep.number("defensive", a.defensive > 0 ? a.defensive : double(p.gradient.pixels.defensive));
   SamplerRun runs[3];
   const PixelSampler kinds[3] = {PixelSampler::Uniform, PixelSampler::LossGrad, PixelSampler::Adaptive};
   std::string js = "{";
   for (int i = 0; i < 3; ++i) {
-    runs[i] = measure(p, targets, kinds[i], n, a.reps);
+    runs[i] = measure(p, targets, kinds[i], n, a.reps, a.defensive);
     std::cerr << pixelSamplerName(kinds[i]) << ": variance " << runs[i].variance << ", " << runs[i].seconds << " s\n";
     js += std::string(i ? ", " : "") + "\"" + pixelSamplerName(kinds[i]) + "\": " + BenchReport::fmt(runs[i].variance);
   }
@@ -90,6 +93,7 @@ void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   c->add_option("--scene", a->scene, "zoo scene (its built-in job)")->capture_default_str();
   c->add_option("--reps", a->reps, "gradient evaluations per sampler")->capture_default_str()->check(CLI::Range(2, 1000000));
   c->add_option("--samples", a->samples, "pixel samples per view (default: a fifth of the pixels)");
+  c->add_option("--defensive", a->defensive, "uniform share of the sampling mixture (default: the job's, 0.2)")->check(CLI::Range(1e-6, 1.0));
   c->add_flag("--json", a->json, "print the figures as JSON");
   c->callback([a, &exitCode] {
     run(*a);
