@@ -14,6 +14,7 @@
 #include <map>
 
 #include "core/diff/diff_scenes.h"
+#include "core/diff/fd_reference.h"
 #include <tbb/task_arena.h>
 #include "core/error.h"
 #include "core/render/renderer.h"
@@ -21,61 +22,11 @@
 namespace invr {
 namespace {
 
-struct Fixture {
-  std::unique_ptr<Scene> scene = test::sceneFromJson(test::kDiffScene);
-  ParameterRegistry reg;
-  std::vector<float> truth, theta;
-  Image target;
-
-  Fixture() {
-    reg.add(*scene, "materials/wall/albedo");
-    reg.add(*scene, "materials/metal/roughness");
-    reg.add(*scene, "lights/bulb/intensity");
-    reg.add(*scene, "lights/lamp/intensity");
-    truth = reg.read(*scene);
-    target = render(truth, 1024, 5);
-    reg.write(truth, *scene);
-    theta = truth;
-    for (auto& v : theta) v *= 0.8f;
-  }
-  // Renders with sampling distributions frozen at whatever the scene has (see finiteDifference).
-  Image render(const std::vector<float>& t, int spp, uint64_t seed) {
-    reg.write(t, *scene, /*refreshSampling=*/false);
-    RenderOptions o;
-    o.spp = spp;
-    o.seed = seed;
-    return renderView(*scene, 0, o).image;
-  }
-  // The converged L2 loss, estimated without bias: mean of (I_a - T)(I_b - T) over pixels and
-  // channels with I_a, I_b independent renders (a single render's (I - T)^2 would add Var(I),
-  // whose derivative is not part of the gradient).
-  double convergedLoss(const std::vector<float>& t, uint64_t seed) {
-    Image a = render(t, 512, 2 * seed + 100), b = render(t, 512, 2 * seed + 101);
-    double sum = 0;
-    for (size_t i = 0; i < a.data().size(); ++i) sum += double(a.data()[i] - target.data()[i]) * double(b.data()[i] - target.data()[i]);
-    return sum / double(a.data().size());
-  }
-  // Central difference of the converged loss in component k, with its standard error. Light
-  // selection is set once at theta and kept for both sides, so random numbers stay common.
-  const test::MeanSE& finiteDifference(size_t k) {
-    auto it = fdCache.find(k);
-    if (it != fdCache.end()) return it->second;
-    reg.write(theta, *scene);
-    test::MeanSE fd;
-    float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
-    for (uint64_t seed = 0; seed < 4; ++seed) {
-      auto plus = theta, minus = theta;
-      plus[k] += h;
-      minus[k] -= h;
-      fd.add((convergedLoss(plus, seed) - convergedLoss(minus, seed)) / (2.0 * h));
-    }
-    return fdCache[k] = fd;
-  }
-  std::map<size_t, test::MeanSE> fdCache;
-};
+// Albedo texels 0..47, roughness 48, point light 49..51, area light 52..54.
+using Fixture = test::FdReference;
 
 Fixture& fixture() {
-  static Fixture f;
+  static Fixture f(test::kDiffScene, {"materials/wall/albedo", "materials/metal/roughness", "lights/bulb/intensity", "lights/lamp/intensity"});
   return f;
 }
 

@@ -11,6 +11,7 @@
 #include <map>
 
 #include "core/diff/diff_scenes.h"
+#include "core/diff/fd_reference.h"
 #include "core/diff/gradient_engine.h"
 #include "core/error.h"
 #include "core/render/path_tracer.h"
@@ -22,53 +23,19 @@ namespace {
 constexpr int kDepth = 3;
 constexpr int kSessions = 256;
 
-struct ReplayFixture {
-  std::unique_ptr<Scene> scene = test::sceneFromJson(test::kReflectionScene);
-  ParameterRegistry reg;
-  std::vector<float> truth, theta;
-  Image target;
-
-  ReplayFixture() {
-    reg.add(*scene, "materials/wall/albedo");     // 0..47: seen only in the mirror
-    reg.add(*scene, "materials/mirror/roughness");  // 48
-    reg.add(*scene, "materials/gloss/roughness");   // 49: seen only in the mirror
-    reg.add(*scene, "lights/lamp/intensity");       // 50..52
-    truth = reg.read(*scene);
-    target = render(truth, 1024, 5);
-    reg.write(truth, *scene);
-    theta = truth;
-    for (auto& v : theta) v *= 0.8f;
-  }
-  Image render(const std::vector<float>& t, int spp, uint64_t seed) {
-    reg.write(t, *scene, /*refreshSampling=*/false);
-    RenderOptions o;
-    o.spp = spp;
-    o.seed = seed;
-    o.maxDepth = kDepth;
-    o.estimator = LightEstimator::NeeMis;
-    return renderView(*scene, 0, o).image;
-  }
-  double convergedLoss(const std::vector<float>& t, uint64_t seed) {
-    Image a = render(t, 256, 2 * seed + 100), b = render(t, 256, 2 * seed + 101);
-    double sum = 0;
-    for (size_t i = 0; i < a.data().size(); ++i) sum += double(a.data()[i] - target.data()[i]) * double(b.data()[i] - target.data()[i]);
-    return sum / double(a.data().size());
-  }
-  const test::MeanSE& finiteDifference(size_t k) {
-    auto it = fdCache.find(k);
-    if (it != fdCache.end()) return it->second;
-    reg.write(theta, *scene);
-    test::MeanSE fd;
-    float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
-    for (uint64_t seed = 0; seed < 4; ++seed) {
-      auto plus = theta, minus = theta;
-      plus[k] += h;
-      minus[k] -= h;
-      fd.add((convergedLoss(plus, seed) - convergedLoss(minus, seed)) / (2.0 * h));
-    }
-    return fdCache[k] = fd;
-  }
-  std::map<size_t, test::MeanSE> fdCache;
+// Wall albedo 0..47 and the sphere's roughness 49 are seen only in the mirror (roughness 48);
+// the lamp's intensity is 50..52. The forward renderer runs NEE + MIS paths of the same depth.
+struct ReplayFixture : test::FdReference {
+  ReplayFixture()
+      : FdReference(test::kReflectionScene,
+                    {"materials/wall/albedo", "materials/mirror/roughness", "materials/gloss/roughness", "lights/lamp/intensity"},
+                    [] {
+                      RenderOptions o;
+                      o.maxDepth = kDepth;
+                      o.estimator = LightEstimator::NeeMis;
+                      return o;
+                    }(),
+                    256) {}
 };
 
 TEST(PathReplay, RadianceMatchesTheForwardPathTracer) {
