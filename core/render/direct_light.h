@@ -70,6 +70,17 @@ inline bool traceShadow(const Scene& scene, const ShadingPoint& sp, const LightS
 }
 
 // A path to a light sample whose unbiased contribution weight (in the native measure) is W.
+// A path that carries a non-finite value, so the caller's single non-finite check counts and drops
+// the sample (a NaN parameter or an overflow inside a resampling weight must not turn into a silent
+// zero).
+inline DirectPath nonFinitePath() {
+  DirectPath p;
+  p.weight = Rgb(std::numeric_limits<float>::quiet_NaN());
+  p.bsdfValue = Rgb(1.f);
+  p.emission = Rgb(1.f);
+  return p;
+}
+
 inline DirectPath pathToLight(const ShadingPoint& sp, const LightSample& ls, Rgb f, float W) {
   DirectPath p;
   p.weight = Rgb(W * ls.jacobian);
@@ -86,8 +97,9 @@ inline DirectPath pathToLight(const ShadingPoint& sp, const LightSample& ls, Rgb
 bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out);
 
 // Streaming RIS core (Alg. 1): the reservoir after M candidates, and the chosen sample's data.
+// A candidate with a non-finite target sets *nonFinite (the caller drops the whole sample).
 Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
-                    PathContext* ctx, LightSample& chosen, Rgb& chosenF);
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite = nullptr);
 
 // Baseline B.2: streaming RIS over M candidates drawn by the NEE strategy (Alg. 1). The target
 // includes visibility when visibilityInTarget (Eq. 14), else not (Eq. 17). `reservoir` receives

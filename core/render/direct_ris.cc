@@ -6,7 +6,7 @@ namespace invr {
 // nothing); the source density is pmf(light) * pdfNative and the target uses the same measure,
 // so w = p_hat / p_c is well defined for delta, area and environment lights alike.
 Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
-                    PathContext* ctx, LightSample& chosen, Rgb& chosenF) {
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite) {
   Reservoir r;
   if (scene.lights.empty()) return r;
   for (int m = 0; m < candidates; ++m) {
@@ -19,6 +19,10 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
     LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2, uint32_t(li));
     Rgb f(0.f);
     float target = risTarget(sp, ls, &f);
+    if (!std::isfinite(target)) {  // reported, not resampled: the caller drops the whole sample
+      if (nonFinite) *nonFinite = true;
+      target = 0.f;
+    }
     if (target > 0.f && visibilityInTarget && traceShadow(scene, sp, ls, ctx)) target = 0.f;
     double w = target > 0.f ? double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
     if (r.update(ls.ref, w, target, uPick)) {
@@ -34,8 +38,13 @@ bool sampleDirectRis(const Scene& scene, const ShadingPoint& sp, Sampler& sample
                      PathContext* ctx, DirectPath& out, Reservoir* reservoirOut) {
   LightSample chosen;
   Rgb chosenF(0.f);
-  Reservoir r = streamRis(scene, sp, sampler, candidates, visibilityInTarget, ctx, chosen, chosenF);
-  if (reservoirOut) *reservoirOut = r;
+  bool poisoned = false;
+  Reservoir r = streamRis(scene, sp, sampler, candidates, visibilityInTarget, ctx, chosen, chosenF, &poisoned);
+  if (reservoirOut) *reservoirOut = poisoned ? Reservoir() : r;
+  if (poisoned) {
+    out = nonFinitePath();
+    return true;
+  }
   if (!(r.W > 0.f)) return false;
   if (!visibilityInTarget && traceShadow(scene, sp, chosen, ctx)) return false;
   out = pathToLight(sp, chosen, chosenF, r.W);

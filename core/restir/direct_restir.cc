@@ -34,7 +34,8 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
                         RestirCounters* counters) {
   LightSample chosen;
   Rgb chosenF(0.f);
-  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF);
+  bool poisoned = false;
+  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF, &poisoned);
 
   constexpr int kMaxNeighbours = 32;
   uint32_t nb[kMaxNeighbours];
@@ -56,6 +57,10 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     LightSample ls = evalLightSample(scene, q.r.y, sp.hit->p);
     Rgb f(0.f);
     float t = risTarget(sp, ls, &f);
+    if (!std::isfinite(t)) {
+      poisoned = true;
+      t = 0.f;
+    }
     if (t > 0.f && s.visibilityInTarget && traceShadow(scene, sp, ls, ctx)) t = 0.f;
     if (c.stream(q.r.y, double(t) * double(q.r.W) * double(nbM[i]), t, u)) {
       chosen = ls;
@@ -76,6 +81,12 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     }
   }
   c.finalize(Z);
+  if (poisoned) {  // counted and dropped by the caller; nothing non-finite is kept for reuse
+    combined = Reservoir();
+    if (counters) ++counters->shadingPoints;
+    out = nonFinitePath();
+    return true;
+  }
   combined = c;
   if (counters) {
     counters->neighboursUsed += uint64_t(k);

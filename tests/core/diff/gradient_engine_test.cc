@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
 #include <map>
 
 #include "core/diff/diff_scenes.h"
@@ -125,6 +126,45 @@ TEST(GradientEngine, BadRequestsAreInputErrors) {
   EXPECT_THROW(engine.evaluate(std::vector<float>(3), r, s), InputError);  // wrong theta size
   GradientEngine noTarget(*f.scene, f.reg, {}, {});
   EXPECT_THROW(noTarget.evaluate(f.theta, r, s), InputError);
+}
+
+}  // namespace
+}  // namespace invr
+
+namespace invr {
+namespace {
+
+// Non-finite samples are caught in one place, counted, and kept out of the loss and the gradient:
+// an albedo texel poisoned with NaN leaves every gradient component finite (and the others'
+// gradients intact), and the count says how many samples were dropped. For each light-sampling
+// method, and for path replay.
+TEST(GradientEngine, NonFiniteSamplesAreCountedAndDropped) {
+  Fixture& f = fixture();
+  std::vector<float> theta = f.theta;
+  theta[0] = std::numeric_limits<float>::quiet_NaN();  // one albedo texel
+  for (GradientMethod m : {GradientMethod::Pt, GradientMethod::Ris, GradientMethod::Restir}) {
+    for (int depth : {1, 3}) {
+      if (depth > 1 && m != GradientMethod::Pt) continue;
+      GradientOptions o;
+      o.method = m;
+      o.maxDepth = depth;
+      GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+      EngineSession session;
+      GradientRequest r;
+      r.views = {0};
+      r.seed = 9;
+      GradientResult g = engine.evaluate(theta, r, session);
+      EXPECT_GT(g.stats.nonFiniteSamples, 0u) << gradientMethodName(m) << " depth " << depth;
+      EXPECT_TRUE(std::isfinite(g.stats.loss)) << gradientMethodName(m) << " depth " << depth;
+      size_t nonFinite = 0;
+      for (double v : g.gradient) nonFinite += std::isfinite(v) ? 0 : 1;
+      EXPECT_EQ(nonFinite, 0u) << gradientMethodName(m) << " depth " << depth;
+      // The unaffected components still carry a gradient.
+      EXPECT_NE(g.gradient[4], 0.0) << gradientMethodName(m) << " depth " << depth;
+      EXPECT_NE(g.gradient[49], 0.0) << gradientMethodName(m) << " depth " << depth;
+    }
+  }
+  f.reg.write(f.theta, *f.scene);  // leave the shared scene as the other tests expect it
 }
 
 }  // namespace
