@@ -6,10 +6,11 @@
 #include <iostream>
 #include <memory>
 
-#include "client/bench_report.h"
+#include "client/bench.h"
 #include "client/commands.h"
 #include "core/diff/problem.h"
 #include "core/diff/zoo_jobs.h"
+#include "core/optim/equal_time.h"
 #include "core/error.h"
 
 namespace invr::cli {
@@ -74,17 +75,10 @@ double relativeSquaredError(const std::vector<double>& g, const std::vector<doub
   return num / den;
 }
 
-struct GradientsArgs {
-  std::string scene = "ajar";
-  int reps = 6, burnIn = 16, refEvaluations = 32, refSpp = 8;
-  int neighbours = 0;  // 0: the job's default
-  double mCap = 0;
-  double radiusPixels = 0;
-  bool json = false;
-};
+}  // namespace
 
-void runBenchGradients(const GradientsArgs& a) {
-  Setup s = makeSetup(a.scene, 256);
+BenchReport benchGradients(const GradientsArgs& a) {
+  Setup s = makeSetup(a.scene, a.targetSpp);
   if (a.neighbours > 0) s.problem.gradient.restir.neighbours = a.neighbours;
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
   if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
@@ -167,17 +161,11 @@ void runBenchGradients(const GradientsArgs& a) {
   // Step times match only to within one spp; relMSE x seconds compares work-normalised efficiency.
   rep.number("efficiency_ratio_ris_over_restir", relmse[1] * seconds[1] / (relmse[2] * seconds[2]), "(relMSE x seconds)");
   rep.number("efficiency_ratio_pt_over_restir", relmse[0] * seconds[0] / (relmse[2] * seconds[2]), "(relMSE x seconds)");
-  rep.print(a.json);
+  return rep;
 }
 
-struct OverheadArgs {
-  std::string scene = "oxalis";
-  int steps = 6;
-  bool json = false;
-};
-
-void runBenchOverhead(const OverheadArgs& a) {
-  Setup s = makeSetup(a.scene, 64);
+BenchReport benchOverhead(const OverheadArgs& a) {
+  Setup s = makeSetup(a.scene, a.targetSpp);
   // Equal samples: the same M candidates and spp; ReSTIR adds the kd-tree build, neighbour search,
   // combination and reservoir bookkeeping. Interleave the two to share the machine's noise.
   GradientEngine ris(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, GradientMethod::Ris, 1));
@@ -209,8 +197,10 @@ void runBenchOverhead(const OverheadArgs& a) {
   rep.number("ris_seconds_per_step", ris50, "s (median)");
   rep.number("restir_seconds_per_step", restir50, "s (median)");
   rep.number("restir_overhead_fraction", (restir50 - ris50) / restir50, "(target <= 0.20)");
-  rep.print(a.json);
+  return rep;
 }
+
+namespace {
 
 struct ReconstructArgs {
   std::string scene = "oxalis";
@@ -236,7 +226,8 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   s.targets = renderTargets(s.problem);
   std::ofstream csv(a.csv);
   if (!csv) throw InputError("--csv: cannot write '" + a.csv + "'");
-  csv << "method,step,seconds,loss,param_error\n";
+  csv << kEqualTimeCsvHeader << "\n";
+  ImageErrorMeter meter(s.problem, 1, 16);
   BenchReport rep("reconstruct");
   rep.text("scene", a.scene);
   rep.number("seconds_per_method", a.seconds, "s");
@@ -259,37 +250,13 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   }
   std::vector<double> errors;
   for (const Variant& v : variants) {
-    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, v.options);
-    EngineSession session;
-    std::vector<float> theta = s.problem.initial;
-    OptimizerState state;
-    auto t0 = Clock::now();
-    uint64_t step = 0;
-    const std::string& name = v.name;
-    csv << name << ",0,0," << "," << parameterError(s.problem, theta) << "\n";
-    // The burn-in counts against ReSTIR's time budget.
-    int burn = v.options.method == GradientMethod::Restir ? s.problem.burnIn : 0;
-    for (int b = 0; b < burn; ++b) {
-      GradientRequest rb;
-      rb.views = viewsForStep(s.problem, step);
-      rb.step = step++;
-      rb.seed = s.problem.seed;
-      rb.renderOnly = true;
-      engine.evaluate(theta, rb, session);
-    }
-    int steps = 0;
-    while (since(t0) < a.seconds) {
-      GradientRequest r;
-      r.views = viewsForStep(s.problem, step);
-      r.step = step++;
-      r.seed = s.problem.seed;
-      auto res = engine.evaluate(theta, r, session);
-      optimizerStep(s.problem.optimizer, s.problem.params, res.gradient, theta, state);
-      ++steps;
-      csv << name << "," << steps << "," << since(t0) << "," << res.stats.loss << "," << parameterError(s.problem, theta) << "\n";
-    }
-    errors.push_back(parameterError(s.problem, theta));
-    rep.number("steps_" + name, steps);
+    EqualTimeOptions budget;
+    budget.seconds = a.seconds;
+    EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
+                                    [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, v.name, pt); });
+    errors.push_back(run.history.back().parameterError);
+    rep.number("steps_" + v.name, run.history.back().step);
+    rep.number("image_error_" + v.name, run.history.back().imageError);
   }
   std::string js = "{", shown;
   for (size_t i = 0; i < variants.size(); ++i) {
@@ -326,14 +293,14 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   g->add_option("--m-cap", ga->mCap, "ReSTIR confidence cap (default: the scene job's, 2 x M)");
   g->add_option("--radius-pixels", ga->radiusPixels, "ReSTIR neighbour radius in pixel footprints (default: the job's)");
   g->add_flag("--json", ga->json, "print one JSON object");
-  g->callback([ga, &exitCode] { runBenchGradients(*ga); exitCode = 0; });
+  g->callback([ga, &exitCode] { benchGradients(*ga).print(ga->json); exitCode = 0; });
 
   auto oa = std::make_shared<OverheadArgs>();
   auto* o = bench.add_subcommand("overhead", "ReSTIR's overhead over RIS at equal sample counts, as a fraction of step time");
   o->add_option("--scene", oa->scene, "zoo scene")->capture_default_str();
   o->add_option("--steps", oa->steps, "timed steps of each")->capture_default_str();
   o->add_flag("--json", oa->json, "print one JSON object");
-  o->callback([oa, &exitCode] { runBenchOverhead(*oa); exitCode = 0; });
+  o->callback([oa, &exitCode] { benchOverhead(*oa).print(oa->json); exitCode = 0; });
 
   auto ra = std::make_shared<ReconstructArgs>();
   auto* rc = bench.add_subcommand("reconstruct", "Equal-time reconstruction of the scene's parameters: PT, RIS, ReSTIR (or pixel samplers)");

@@ -4,9 +4,11 @@
 // `refresh` steps as in an optimisation. Variance = sum over parameter components of the
 // per-component variance. Also stage 1's share of the adaptive sampler's time.
 #include <chrono>
+#include <cmath>
+#include <map>
 #include <iostream>
 
-#include "client/bench_report.h"
+#include "client/bench.h"
 #include "client/commands.h"
 #include "core/diff/problem.h"
 #include "core/diff/zoo_jobs.h"
@@ -15,25 +17,21 @@ namespace invr::cli {
 
 namespace {
 
-struct PixelBenchArgs {
-  std::string scene = "mirror";
-  int reps = 1024;
-  double defensive = 0;  // override the job's uniform share
-  int samples = 0;  // pixel samples per view; 0: a fifth of the pixels (the paper: ~100K paths for 512^2)
-  bool json = false;
-};
-
 struct SamplerRun {
   double variance = 0, seconds = 0, stage1 = 0;
 };
 
-SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler sampler, int samples, int reps, double defensive) {
+// `preset`: fixed maps per view (never refreshed) instead of the sampler's own stage 1.
+SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler sampler, int samples, int reps, double defensive,
+                   const std::map<int, PixelMap>* preset = nullptr) {
   GradientOptions o = p.gradient;
   if (defensive > 0) o.pixels.defensive = float(defensive);
   o.pixels.sampler = sampler;
   o.pixels.samplesPerView = samples;
+  if (preset) o.pixels.refreshEvery = 1 << 30;
   GradientEngine engine(*p.scene, p.params, targets, o);
   EngineSession session;
+  if (preset) session.pixelMaps = *preset;
   std::vector<double> sum(p.params.size(), 0.0), sumSq(p.params.size(), 0.0);
   SamplerRun out;
   auto t0 = std::chrono::steady_clock::now();
@@ -57,8 +55,43 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler s
   return out;
 }
 
-void run(const PixelBenchArgs& a) {
+// Reference maps: the second moments E[|dL/dI_j|^2] and E[sum_k (dI_j/dtheta_k)^2] of Eq. 12 and
+// 16 averaged over `samples` stage-1 passes at every pixel (no upsampling, no levels). With many
+// samples, sqrt of their product is the variance-optimal p_j for one parameter, so its variance
+// bounds what any stage 1 could reach: it separates the sampler's design from stage-1 noise.
+std::map<int, PixelMap> referenceMaps(Problem& p, const std::vector<Image>& targets, bool adaptive, int samples, double defensive) {
+  GradientOptions o = p.gradient;
+  o.pixels.stage1Stride = 1;
+  GradientEngine engine(*p.scene, p.params, targets, o);
+  p.params.write(p.initial, *p.scene);
+  std::map<int, PixelMap> maps;
+  const size_t pixels = size_t(p.scene->width) * size_t(p.scene->height);
+  for (size_t v = 0; v < p.scene->cameras.size(); ++v) {
+    std::vector<double> adjSq(pixels, 0.0), derivSq(pixels, 0.0);
+    for (int i = 0; i < samples; ++i) {
+      GradientRequest r;
+      r.step = uint64_t(i);
+      r.seed = p.seed ^ 0x0a11ce5ull;  // not the measured runs' streams
+      Stage1 s = engine.measureStage1(int(v), r);
+      for (size_t j = 0; j < pixels; ++j) {
+        for (int c = 0; c < 3; ++c) adjSq[j] += double(s.adjoint[3 * j + size_t(c)]) * s.adjoint[3 * j + size_t(c)];
+        derivSq[j] += double(s.derivSq[j]);
+      }
+    }
+    std::vector<float> q(pixels);
+    for (size_t j = 0; j < pixels; ++j) q[j] = float(adaptive ? std::sqrt(adjSq[j] * derivSq[j]) : std::sqrt(adjSq[j]));
+    PixelMap m;
+    m.setProbabilities(defensiveMixture(q, float(defensive > 0 ? defensive : p.gradient.pixels.defensive)));
+    maps[int(v)] = std::move(m);
+  }
+  return maps;
+}
+
+}  // namespace
+
+BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   auto job = zooJob(a.scene);
+  if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
   Problem p = buildProblem(job);
   std::cerr << "rendering targets (" << p.targetSpp << " spp)...\n";
   std::vector<Image> targets = renderTargets(p);
@@ -82,10 +115,19 @@ void run(const PixelBenchArgs& a) {
   rep.number("ratio_loss_grad_over_adaptive", runs[1].variance / runs[2].variance, "(target >= 3)");
   rep.number("ratio_uniform_over_adaptive", runs[0].variance / runs[2].variance);
   rep.number("stage1_overhead_fraction", runs[2].stage1 / runs[2].seconds, "(target <= 0.10)");
-  rep.print(a.json);
+  if (a.referenceSamples > 0) {
+    std::cerr << "reference maps (" << a.referenceSamples << " stage-1 passes per view, every pixel)...\n";
+    auto refAdaptive = referenceMaps(p, targets, true, a.referenceSamples, a.defensive);
+    auto refLossGrad = referenceMaps(p, targets, false, a.referenceSamples, a.defensive);
+    SamplerRun ra = measure(p, targets, PixelSampler::Adaptive, n, a.reps, a.defensive, &refAdaptive);
+    SamplerRun rl = measure(p, targets, PixelSampler::LossGrad, n, a.reps, a.defensive, &refLossGrad);
+    rep.raw("variance_reference_maps", "{\"loss_grad\": " + BenchReport::fmt(rl.variance) + ", \"adaptive\": " + BenchReport::fmt(ra.variance) + "}",
+            "loss_grad " + BenchReport::fmt(rl.variance) + ", adaptive " + BenchReport::fmt(ra.variance) + " (maps from many stage-1 passes)");
+    rep.number("reference_ratio_loss_grad_over_adaptive", rl.variance / ra.variance, "(the bound on what a better stage 1 could reach)");
+    rep.number("reference_ratio_uniform_over_adaptive", runs[0].variance / ra.variance);
+  }
+  return rep;
 }
-
-}  // namespace
 
 void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   auto a = std::make_shared<PixelBenchArgs>();
@@ -94,9 +136,12 @@ void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   c->add_option("--reps", a->reps, "gradient evaluations per sampler")->capture_default_str()->check(CLI::Range(2, 1000000));
   c->add_option("--samples", a->samples, "pixel samples per view (default: a fifth of the pixels)");
   c->add_option("--defensive", a->defensive, "uniform share of the sampling mixture (default: the job's, 0.2)")->check(CLI::Range(1e-6, 1.0));
+  c->add_option("--reference-maps", a->referenceSamples,
+                "also measure adaptive and loss_grad with reference maps averaged over this many stage-1 passes at every pixel")
+      ->check(CLI::Range(1, 100000));
   c->add_flag("--json", a->json, "print the figures as JSON");
   c->callback([a, &exitCode] {
-    run(*a);
+    benchPixelVariance(*a).print(a->json);
     exitCode = 0;
   });
 }

@@ -1,6 +1,7 @@
 // Benchmarks print a readable table, or with --json one JSON object with the named figures.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -24,18 +25,26 @@ class BenchReport {
     std::snprintf(buf, sizeof buf, "%.6g", v);
     return buf;
   }
-  void print(bool json) const {
-    if (json) {
-      std::printf("{\"benchmark\": \"%s\"", title_.c_str());
-      for (const auto& r : rows_) std::printf(", \"%s\": %s", r.key.c_str(), r.json.c_str());
-      std::printf("}\n");
-      return;
-    }
-    std::printf("%s\n", title_.c_str());
+  std::string json() const {
+    std::string o = "{\"benchmark\": \"" + title_ + "\"";
+    for (const auto& r : rows_) o += ", \"" + r.key + "\": " + r.json;
+    return o + "}";
+  }
+  std::string table() const {
     size_t w = 0;
     for (const auto& r : rows_) w = std::max(w, r.key.size());
-    for (const auto& r : rows_) std::printf("  %-*s  %s\n", int(w), r.key.c_str(), r.display.c_str());
+    std::string o = title_ + "\n";
+    for (const auto& r : rows_) o += "  " + r.key + std::string(w - r.key.size(), ' ') + "  " + r.display + "\n";
+    return o;
   }
+  // Rows as (key, display) for documents.
+  std::vector<std::pair<std::string, std::string>> rows() const {
+    std::vector<std::pair<std::string, std::string>> out;
+    for (const auto& r : rows_) out.push_back({r.key, r.display});
+    return out;
+  }
+  const std::string& title() const { return title_; }
+  void print(bool asJson) const { std::fputs((asJson ? json() + "\n" : table()).c_str(), stdout); }
 
  private:
   struct Row { std::string key, json, display; };

@@ -13,5 +13,6 @@ void addOptimizeCommands(CLI::App& app, int& exitCode);
 void addServiceCommands(CLI::App& app, int& exitCode);  // run, submit, watch, status, list, cancel, fetch, plan
 void addBenchServiceCommand(CLI::App& bench, int& exitCode);
 void addBenchPixelCommand(CLI::App& bench, int& exitCode);
+void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
 
 }  // namespace invr::cli

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   invr::cli::addBenchCommand(app, exitCode);
   invr::cli::addOptimizeCommands(app, exitCode);
   invr::cli::addServiceCommands(app, exitCode);
+  invr::cli::addEvalCommand(app, exitCode);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

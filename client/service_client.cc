@@ -159,28 +159,29 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
   }
 }
 
+void ServiceClient::fetchOne(const std::string& job, const std::string& name, const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir);
+  grpc::ClientContext ctx;
+  v1::FetchResultRequest req;
+  req.set_job_id(job);
+  req.set_name(name);
+  auto reader = stub_->FetchResult(&ctx, req);
+  std::filesystem::path tmp = dir / (name + ".part");
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw InputError("-o: cannot write to '" + dir.string() + "'");
+    v1::AssetChunk c;
+    while (reader->Read(&c)) out.write(c.data().data(), std::streamsize(c.data().size()));
+  }
+  throwIfFailed(reader->Finish(), "fetch " + name);
+  std::filesystem::rename(tmp, dir / name);
+}
+
 int ServiceClient::fetchAll(const std::string& job, const std::filesystem::path& dir) {
   v1::JobStatus s = get(job);
   std::filesystem::create_directories(dir);
-  int n = 0;
-  for (const auto& name : s.results()) {
-    grpc::ClientContext ctx;
-    v1::FetchResultRequest req;
-    req.set_job_id(job);
-    req.set_name(name);
-    auto reader = stub_->FetchResult(&ctx, req);
-    std::filesystem::path tmp = dir / (name + ".part");
-    {
-      std::ofstream out(tmp, std::ios::binary);
-      if (!out) throw InputError("-o: cannot write to '" + dir.string() + "'");
-      v1::AssetChunk c;
-      while (reader->Read(&c)) out.write(c.data().data(), std::streamsize(c.data().size()));
-    }
-    throwIfFailed(reader->Finish(), "fetch " + name);
-    std::filesystem::rename(tmp, dir / name);
-    ++n;
-  }
-  return n;
+  for (const auto& name : s.results()) fetchOne(job, name, dir);
+  return s.results_size();
 }
 
 std::string describeEvent(const v1::ProgressEvent& e) {

@@ -39,6 +39,8 @@ class ServiceClient {
 
   // Downloads every result file into dir; returns how many.
   int fetchAll(const std::string& job, const std::filesystem::path& dir);
+  // Downloads one result file (a name from JobStatus.results) into dir.
+  void fetchOne(const std::string& job, const std::string& name, const std::filesystem::path& dir);
 
   const std::string& address() const { return address_; }
 

@@ -21,7 +21,7 @@
 #include "client/progress.h"
 #include "client/service_client.h"
 #include "core/diff/problem.h"
-#include "core/optim/chart.h"
+#include "core/optim/figures.h"
 #include "core/restir/reservoir_store.h"
 #include "server/server.h"
 #include "server/sha256.h"
@@ -418,23 +418,42 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
 
   struct ChartArgs {
     std::vector<std::string> inputs;
-    std::string out = "chart.png", x = "seconds", y = "param_error";
+    std::string out = "chart.png", x = "seconds", y = "param_error", title, server;
   };
   auto ch = std::make_shared<ChartArgs>();
-  auto* chc = app.add_subcommand("chart", "Chart convergence CSVs or job output folders (log-scale error against time or steps)");
-  chc->add_option("runs", ch->inputs, "convergence.csv files, or folders holding one (from run, fetch, optimize)")->required();
+  auto* chc = app.add_subcommand("chart", "Chart convergence CSVs, job output folders or jobs on a server (log-scale error against time or steps)");
+  chc->add_option("runs", ch->inputs, "convergence.csv files, folders holding one (from run, fetch, optimize, eval), or job ids on --server")
+      ->required();
   chc->add_option("-o,--out", ch->out, "chart file (.png or .svg)")->capture_default_str();
-  chc->add_option("--x", ch->x, "x axis")->check(CLI::IsMember({"seconds", "step"}))->capture_default_str();
-  chc->add_option("--y", ch->y, "y axis")->check(CLI::IsMember({"param_error", "loss"}))->capture_default_str();
+  chc->add_option("--x", ch->x, "x axis")->check(CLI::IsMember({"seconds", "step", "steps"}))->capture_default_str();
+  chc->add_option("--y", ch->y, "y axis (image_error: CSVs from invr eval and bench reconstruct)")
+      ->check(CLI::IsMember({"param_error", "loss", "image_error"}))
+      ->capture_default_str();
+  chc->add_option("--title", ch->title, "chart title");
+  serverOpt(chc, ch->server);
   chc->callback([ch, &exitCode] {
     std::vector<std::filesystem::path> csvs;
+    std::filesystem::path fetched;  // jobs' CSVs, downloaded into a folder per job id
     for (const auto& in : ch->inputs) {
       std::filesystem::path p(in);
+      if (!std::filesystem::exists(p) && in.rfind("job-", 0) == 0 && in.find('/') == std::string::npos) {
+        if (fetched.empty()) fetched = std::filesystem::temp_directory_path() / ("invr-chart-" + std::to_string(getpid()));
+        ServiceClient(ch->server).fetchOne(in, "convergence.csv", fetched / in);
+        csvs.push_back(fetched / in / "convergence.csv");
+        continue;
+      }
       if (std::filesystem::is_directory(p)) p /= "convergence.csv";
-      if (!std::filesystem::exists(p)) throw InputError("'" + p.string() + "': not found");
+      if (!std::filesystem::exists(p)) throw InputError("'" + p.string() + "': not found (a CSV, a folder holding convergence.csv, or a job id)");
       csvs.push_back(p);
     }
-    drawConvergenceChart(csvs, ch->out, ch->x, ch->y);
+    std::string x = ch->x == "steps" ? "step" : ch->x;
+    try {
+      drawConvergenceChart(csvs, ch->out, x, ch->y, ch->title);
+    } catch (...) {
+      if (!fetched.empty()) std::filesystem::remove_all(fetched);
+      throw;
+    }
+    if (!fetched.empty()) std::filesystem::remove_all(fetched);
     std::cout << "wrote " << where(ch->out) << "\n";
     exitCode = exit_code::kOk;
   });

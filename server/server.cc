@@ -21,7 +21,7 @@
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/io/job_io.h"
-#include "core/optim/chart.h"
+#include "core/optim/figures.h"
 #include "core/optim/local_run.h"
 #include "core/optim/results_io.h"
 #include "invr/v1/service.grpc.pb.h"

@@ -93,6 +93,8 @@ class GradientEngine {
   // Writes theta into the scene, then estimates the gradient at it.
   GradientResult evaluate(const std::vector<float>& theta, const GradientRequest& request, EngineSession& session);
   const GradientOptions& options() const { return opt_; }
+  // Stage 1 of pixel sampling for one view, on its own (benchmarks build reference maps from many).
+  Stage1 measureStage1(int view, const GradientRequest& request) { return runStage1(view, request); }
 
  private:
   struct PassResult;

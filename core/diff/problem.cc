@@ -144,9 +144,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   return p;
 }
 
-Image renderTarget(Problem& p, int view) {
-  if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
-  p.params.write(p.truth, *p.scene);
+RenderOptions targetRenderOptions(const Problem& p) {
   // Targets set the floor of every reconstruction (the optimum fits their noise), so use the
   // lowest-variance estimator we have: visibility-aware RIS with 16 candidates.
   RenderOptions ro;
@@ -160,7 +158,13 @@ Image renderTarget(Problem& p, int view) {
     ro.estimator = LightEstimator::NeeMis;
   }
   ro.seed = mix64(p.seed ^ 0x7a26e7u);
-  return renderView(*p.scene, view, ro).image;
+  return ro;
+}
+
+Image renderTarget(Problem& p, int view) {
+  if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
+  p.params.write(p.truth, *p.scene);
+  return renderView(*p.scene, view, targetRenderOptions(p)).image;
 }
 
 std::vector<Image> renderTargets(Problem& p) {

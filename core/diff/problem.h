@@ -7,6 +7,7 @@
 
 #include "core/diff/gradient_engine.h"
 #include "core/optim/optimizer.h"
+#include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"
 
 namespace invr {
@@ -48,6 +49,7 @@ Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets =
 // visibility-aware RIS with 16 candidates, target_spp samples per pixel).
 // Uploaded targets are returned as given.
 std::vector<Image> renderTargets(Problem& problem);
+RenderOptions targetRenderOptions(const Problem& problem);  // how targets are rendered
 Image renderTarget(Problem& problem, int view);
 
 // Root-mean-square difference between theta and the truth.

@@ -36,6 +36,28 @@ void checkDivergence(const Problem& p, uint64_t step, double loss, const std::ve
     }
 }
 
+// Shards are evaluated one after another and summed in shard order: the service does the same
+// arithmetic with the shards on workers, so both give bit-identical parameters.
+GradientResult evaluateShards(const Problem& p, GradientEngine& engine, std::vector<EngineSession>& sessions,
+                              const std::vector<float>& theta, const Evaluation& e) {
+  GradientResult total;
+  for (size_t s = 0; s < p.shards.size(); ++s) {
+    GradientRequest r = shardRequest(p, e, s);
+    if (r.views.empty()) continue;
+    GradientResult g = engine.evaluate(theta, r, sessions.at(s));
+    accumulateShard(total, g);
+    total.stats.secondsPrimal += g.stats.secondsPrimal;
+    total.stats.secondsDerivative += g.stats.secondsDerivative;
+    total.stats.secondsReservoirUpdate += g.stats.secondsReservoirUpdate;
+    total.stats.secondsStage1 += g.stats.secondsStage1;
+    total.stats.reservoirs += g.stats.reservoirs;
+    total.stats.meanM = g.stats.meanM;
+    total.stats.meanNeighbours = g.stats.meanNeighbours;
+  }
+  if (total.gradient.empty()) total.gradient.assign(p.params.size(), 0.0);
+  return total;
+}
+
 LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&)>& onStep) {
   LocalRunResult out;
   out.targets = renderTargets(p);
@@ -44,25 +66,7 @@ LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&
   out.theta = p.initial;
   OptimizerState state;
   auto t0 = std::chrono::steady_clock::now();
-  // Shards are evaluated one after another and summed in shard order: the service does the
-  // same arithmetic with the shards on workers, so both give bit-identical parameters.
-  auto evaluateAll = [&](const Evaluation& e) {
-    GradientResult total;
-    for (size_t s = 0; s < p.shards.size(); ++s) {
-      GradientRequest r = shardRequest(p, e, s);
-      if (r.views.empty()) continue;
-      GradientResult g = engine.evaluate(out.theta, r, sessions[s]);
-      accumulateShard(total, g);
-      total.stats.secondsPrimal += g.stats.secondsPrimal;
-      total.stats.secondsDerivative += g.stats.secondsDerivative;
-      total.stats.secondsReservoirUpdate += g.stats.secondsReservoirUpdate;
-      total.stats.reservoirs += g.stats.reservoirs;
-      total.stats.meanM = g.stats.meanM;
-      total.stats.meanNeighbours = g.stats.meanNeighbours;
-    }
-    if (total.gradient.empty()) total.gradient.assign(p.params.size(), 0.0);
-    return total;
-  };
+  auto evaluateAll = [&](const Evaluation& e) { return evaluateShards(p, engine, sessions, out.theta, e); };
   uint64_t counter = 0;
   for (; counter < uint64_t(p.burnIn); ++counter) evaluateAll(evaluationAt(p, counter));
   for (int s = 1; s <= p.steps; ++s, ++counter) {

@@ -34,6 +34,11 @@ void accumulateShard(GradientResult& total, const GradientResult& shard);
 // kDivergenceLimit, naming the step and the parameter.
 void checkDivergence(const Problem& problem, uint64_t step, double loss, const std::vector<float>& theta);
 
+// Evaluates every shard's part of evaluation `e` at theta (sessions: one per shard) and sums them
+// in shard order, with the shards' timings and reservoir statistics.
+GradientResult evaluateShards(const Problem& problem, GradientEngine& engine, std::vector<EngineSession>& sessions,
+                              const std::vector<float>& theta, const Evaluation& e);
+
 // Throws InputError if the loss becomes non-finite or a parameter non-finite or beyond
 // kDivergenceLimit (divergence), naming the step and the parameter.
 LocalRunResult runLocally(Problem& problem, const std::function<void(const StepReport&)>& onStep = {});

@@ -1,0 +1,48 @@
+// Equal-time optimisation: the evaluation suite's and `invr bench reconstruct`'s loop. A method
+// gets a wall-clock budget (its burn-in counts against it) and takes as many steps as fit; the
+// image error is measured at a few checkpoints with the clock stopped, so measuring costs no
+// method any of its budget.
+#pragma once
+
+#include <functional>
+#include <limits>
+#include <ostream>
+#include <string>
+
+#include "core/optim/image_error.h"
+#include "core/optim/local_run.h"
+
+namespace invr {
+
+struct EqualTimeOptions {
+  double seconds = 60;
+  int imageErrorCheckpoints = 8;  // evenly spaced in the budget, plus the start and the end
+};
+
+struct EqualTimePoint {
+  int step = 0;          // 0: the initial parameters
+  double seconds = 0;    // budget used so far (measurement excluded)
+  double loss = std::numeric_limits<double>::quiet_NaN();  // NaN at step 0
+  double parameterError = 0;
+  double imageError = std::numeric_limits<double>::quiet_NaN();  // NaN between checkpoints
+};
+
+struct EqualTimeRun {
+  std::vector<float> theta;
+  std::vector<EqualTimePoint> history;
+  uint64_t nonFiniteSamples = 0;
+  double secondsStage1 = 0;
+};
+
+// CSV of equal-time runs: the convergence CSV's columns plus the image error (empty between
+// checkpoints; loss empty at step 0).
+inline constexpr const char* kEqualTimeCsvHeader = "method,step,seconds,loss,param_error,image_error";
+void writeEqualTimeCsvRow(std::ostream& out, const std::string& method, const EqualTimePoint& point);
+
+// Optimises problem.initial with `options` (the problem's own gradient settings are ignored)
+// until the budget is spent. `meter` may be null (no image error). `onPoint` sees every point.
+EqualTimeRun runEqualTime(Problem& problem, const std::vector<Image>& targets, const GradientOptions& options,
+                          const EqualTimeOptions& budget, ImageErrorMeter* meter,
+                          const std::function<void(const EqualTimePoint&)>& onPoint = {});
+
+}  // namespace invr

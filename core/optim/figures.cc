@@ -1,0 +1,124 @@
+#include "core/optim/figures.h"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/optim/figures_script.h"  // kFiguresScript, generated from core/optim/figures.py
+
+extern char** environ;
+
+namespace invr {
+
+namespace {
+
+void checkOutput(const std::filesystem::path& out) {
+  std::string ext = out.extension().string();
+  if (ext != ".png" && ext != ".svg") throw InputError("-o: figures are .png or .svg (got '" + out.string() + "')");
+}
+
+// Runs the figures script with `args` after the script; python's complaint becomes the error.
+void runFiguresScript(const std::vector<std::string>& scriptArgs) {
+  const char* python = "/usr/bin/python3";  // Debian's, where python3-matplotlib lives
+  if (access(python, X_OK) != 0) throw std::runtime_error("figures need /usr/bin/python3 with matplotlib (deploy/setup.sh installs them)");
+  std::vector<std::string> args = {python, "-c", kFiguresScript};
+  args.insert(args.end(), scriptArgs.begin(), scriptArgs.end());
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  // python's complaints come back through a file, to be reported as the error.
+  static std::atomic<int> serial{0};
+  std::filesystem::path err = std::filesystem::temp_directory_path() /
+                              ("invr-figure-" + std::to_string(getpid()) + "-" + std::to_string(serial++) + ".err");
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  int rc = posix_spawn(&pid, python, &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) throw std::runtime_error(std::string("cannot run /usr/bin/python3: ") + std::strerror(rc));
+  int status = 0;
+  waitpid(pid, &status, 0);
+  std::ifstream in(err);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::error_code ec;
+  std::filesystem::remove(err, ec);
+  std::string msg = ss.str();
+  while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    if (msg.find("No module named 'matplotlib'") != std::string::npos)
+      throw std::runtime_error("figures need python3-matplotlib (deploy/setup.sh installs it)");
+    // The script's own messages are one line about the input; anything else is its last line.
+    size_t nl = msg.rfind('\n');
+    throw InputError("figure: " + (nl == std::string::npos ? msg : msg.substr(nl + 1)));
+  }
+}
+
+std::string jsonString(const std::string& s) {
+  std::string o = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') o += '\\';
+    if (c == '\n') {
+      o += "\\n";
+      continue;
+    }
+    if (static_cast<unsigned char>(c) < 0x20) {
+      o += ' ';
+      continue;
+    }
+    o += c;
+  }
+  return o + "\"";
+}
+
+}  // namespace
+
+void drawConvergenceChart(const std::vector<std::filesystem::path>& csvs, const std::filesystem::path& out, const std::string& x,
+                          const std::string& y, const std::string& title) {
+  checkOutput(out);
+  for (const auto& c : csvs)
+    if (!std::filesystem::exists(c)) throw InputError("'" + c.string() + "': not found");
+  std::vector<std::string> args = {"chart", out.string(), x, y, title};
+  for (const auto& c : csvs) args.push_back(c.string());
+  runFiguresScript(args);
+}
+
+void drawImageGrid(const std::string& title, const std::vector<std::string>& columns, const std::vector<GridRow>& rows,
+                   const std::filesystem::path& out) {
+  checkOutput(out);
+  std::string js = "{\"title\": " + jsonString(title) + ", \"columns\": [";
+  for (size_t i = 0; i < columns.size(); ++i) js += (i ? ", " : "") + jsonString(columns[i]);
+  js += "], \"rows\": [";
+  for (size_t r = 0; r < rows.size(); ++r) {
+    if (rows[r].cells.size() != columns.size()) throw std::logic_error("image grid: row '" + rows[r].label + "' has the wrong cell count");
+    js += std::string(r ? ", " : "") + "{\"label\": " + jsonString(rows[r].label) + ", \"cells\": [";
+    for (size_t c = 0; c < rows[r].cells.size(); ++c) {
+      const GridCell& cell = rows[r].cells[c];
+      js += std::string(c ? ", " : "") + "{\"image\": " + (cell.image.empty() ? "null" : jsonString(cell.image.string())) +
+            ", \"caption\": " + jsonString(cell.caption) + "}";
+    }
+    js += "]}";
+  }
+  js += "]}";
+  std::filesystem::path spec = out;
+  spec += ".grid.json";
+  {
+    std::ofstream f(spec);
+    if (!f) throw InputError("cannot write '" + spec.string() + "'");
+    f << js;
+  }
+  runFiguresScript({"grid", out.string(), spec.string()});
+  std::error_code ec;
+  std::filesystem::remove(spec, ec);
+}
+
+}  // namespace invr

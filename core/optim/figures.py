@@ -1,0 +1,112 @@
+# Figures drawn with Debian's /usr/bin/python3 and matplotlib; compiled into invr and the server.
+#   chart OUT X Y TITLE CSV...   convergence CSVs (method,step,seconds,loss,param_error[,image_error]):
+#                                one line per method and file, log-scale error axis, legend from
+#                                the method names; empty cells (unmeasured points) are skipped.
+#   grid OUT SPEC.json           images side by side: {"title", "columns": [...], "rows":
+#                                [{"label", "cells": [{"image": PNG or null, "caption"}]}]}
+import csv
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.image as mpimg  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+
+LABELS = {
+    "seconds": "wall-clock seconds",
+    "step": "step",
+    "param_error": "parameter RMSE",
+    "loss": "loss",
+    "image_error": "image error (relative RMSE)",
+}
+
+
+def number(text):
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return None
+
+
+def chart(out, x, y, title, inputs):
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
+    runs = []  # (method, folder, points) in first-seen order
+    for path in inputs:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        for col in (x, y):
+            if rows and col not in rows[0]:
+                sys.exit(f"{path}: no column '{col}' (has {', '.join(rows[0].keys())})")
+        folder = os.path.basename(os.path.dirname(os.path.abspath(path)))
+        by_method = {}
+        for r in rows:
+            xv, yv = number(r.get(x)), number(r.get(y))
+            if xv is None or yv is None or yv <= 0:
+                continue
+            by_method.setdefault(r.get("method", "") or folder, []).append((xv, yv))
+        if not by_method:
+            print(f"{path}: no positive '{y}' values; skipped", file=sys.stderr)
+        for method, pts in by_method.items():
+            runs.append((method, folder, pts))
+    if not runs:
+        sys.exit(f"nothing to plot: no run has positive '{y}' values")
+    # Runs of the same method are told apart by their folders.
+    methods = [r[0] for r in runs]
+    for method, folder, pts in runs:
+        label = f"{method} ({folder})" if methods.count(method) > 1 else method
+        marker = "o" if len(pts) <= 12 else None  # sparse series (image error) show their points
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], label=label, linewidth=1.4, marker=marker, markersize=3)
+    ax.set_yscale("log")
+    ax.set_xlabel(LABELS.get(x, x))
+    ax.set_ylabel(LABELS.get(y, y))
+    if title:
+        ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out)
+
+
+def grid(out, spec_path):
+    with open(spec_path) as f:
+        spec = json.load(f)
+    rows, columns = spec["rows"], spec["columns"]
+    if not rows or not columns:
+        sys.exit("grid: no rows or no columns")
+    fig, axes = plt.subplots(len(rows), len(columns), figsize=(2.6 * len(columns), 2.5 * len(rows) + 0.5), dpi=110,
+                             squeeze=False)
+    for i, row in enumerate(rows):
+        for j, cell in enumerate(row["cells"]):
+            ax = axes[i][j]
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if cell.get("image"):
+                ax.imshow(mpimg.imread(cell["image"]), interpolation="nearest")
+            else:
+                for side in ax.spines.values():
+                    side.set_visible(False)
+            ax.set_xlabel(cell.get("caption", ""), fontsize=8)
+            if i == 0:
+                ax.set_title(columns[j], fontsize=9)
+            if j == 0:
+                ax.set_ylabel(row["label"], fontsize=9)
+    if spec.get("title"):
+        fig.suptitle(spec["title"], fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out)
+
+
+def main(argv):
+    if argv and argv[0] == "chart":
+        chart(argv[1], argv[2], argv[3], argv[4], argv[5:])
+    elif argv and argv[0] == "grid":
+        grid(argv[1], argv[2])
+    else:
+        sys.exit("usage: figures.py chart|grid ...")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The full evaluation suite, run by hand on a quiet machine; regenerates docs/results/ (commit it).
+# Extra arguments go to `invr eval` (e.g. --scenes mirror,backlit or --budget-scale 0.5).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+bash deploy/build.sh
+OUT=docs/results
+rm -rf "$OUT.new"
+./build/bin/invr eval --out "$OUT.new" "$@" 2>&1 | tee /tmp/invr-eval-full.log
+# Keep only what a reader looks at: the grids' tiles are regenerated on every run.
+find "$OUT.new" -path '*/images/*' -delete
+find "$OUT.new" -type d -name images -empty -delete
+rm -rf "$OUT"
+mv "$OUT.new" "$OUT"
+echo "wrote $OUT (log: /tmp/invr-eval-full.log)"

@@ -1,0 +1,56 @@
+// The equal-time loop: runs until its budget is spent, counts only its own work, records the
+// start (step 0) and the image error at the start, at checkpoints and at the end.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/diff/zoo_jobs.h"
+#include "core/error.h"
+#include "core/optim/equal_time.h"
+
+namespace invr {
+namespace {
+
+TEST(EqualTime, SpendsItsBudgetAndMeasuresAtCheckpoints) {
+  auto job = zooJob("cornell");
+  job.mutable_optimization()->set_target_spp(4);
+  Problem p = buildProblem(job);
+  auto targets = renderTargets(p);
+  ImageErrorMeter meter(p, 1, 1);
+  EqualTimeOptions budget;
+  budget.seconds = 0.6;
+  budget.imageErrorCheckpoints = 3;
+  GradientOptions o = p.gradient;
+  o.method = GradientMethod::Pt;
+  int seen = 0;
+  EqualTimeRun run = runEqualTime(p, targets, o, budget, &meter, [&](const EqualTimePoint&) { ++seen; });
+  ASSERT_GE(run.history.size(), 3u);
+  EXPECT_EQ(seen, int(run.history.size()));
+  EXPECT_EQ(run.history.front().step, 0);
+  EXPECT_TRUE(std::isfinite(run.history.front().imageError));
+  EXPECT_TRUE(std::isfinite(run.history.back().imageError));
+  EXPECT_GE(run.history.back().seconds, budget.seconds);
+  int measured = 0;
+  for (size_t i = 1; i < run.history.size(); ++i) {
+    EXPECT_EQ(run.history[i].step, int(i));
+    EXPECT_GE(run.history[i].seconds, run.history[i - 1].seconds);
+    measured += std::isfinite(run.history[i].imageError) ? 1 : 0;
+  }
+  EXPECT_GE(measured, 1);
+  EXPECT_LE(measured, budget.imageErrorCheckpoints + 1);
+  // Cornell's albedos are easy: the error falls in well under a second of steps.
+  EXPECT_LT(run.history.back().parameterError, run.history.front().parameterError);
+  EXPECT_DOUBLE_EQ(run.history.back().parameterError, parameterError(p, run.theta));
+}
+
+TEST(EqualTime, RejectsANonPositiveBudget) {
+  auto job = zooJob("cornell");
+  job.mutable_optimization()->set_target_spp(1);
+  Problem p = buildProblem(job);
+  EqualTimeOptions budget;
+  budget.seconds = 0;
+  EXPECT_THROW(runEqualTime(p, {}, p.gradient, budget, nullptr), InputError);
+}
+
+}  // namespace
+}  // namespace invr
