@@ -36,6 +36,7 @@ struct PixelBenchArgs {
   double defensive = 0;  // override the job's uniform share
   int samples = 0;       // pixel samples per view; 0: a fifth of the pixels
   int targetSpp = 0;     // 0: the job's
+  double thetaFraction = 1;  // theta = truth + f (initial - truth)
   int referenceSamples = 0;  // > 0: also measure with maps from this many stage-1 passes per pixel
   bool json = false;
 };

@@ -19,7 +19,18 @@ namespace {
 
 struct SamplerRun {
   double variance = 0, seconds = 0, stage1 = 0;
+  // Standard error of `variance`: sqrt(sum_k (m4_k - s_k^4) / n), from each component's fourth
+  // central moment (components treated as independent). Heavy-tailed derivatives (low-roughness
+  // GGX) make it large: ratios are only as good as this.
+  double varianceSe = 0;
 };
+
+// ratio a/b and its standard error, to first order.
+std::string ratioWithSe(const SamplerRun& a, const SamplerRun& b) {
+  double r = a.variance / b.variance;
+  double rel = std::sqrt(std::pow(a.varianceSe / a.variance, 2) + std::pow(b.varianceSe / b.variance, 2));
+  return BenchReport::fmt(r) + " +- " + BenchReport::fmt(r * rel);
+}
 
 // `preset`: fixed maps per view (never refreshed) instead of the sampler's own stage 1.
 SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler sampler, int samples, int reps, double defensive,
@@ -32,7 +43,7 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler s
   GradientEngine engine(*p.scene, p.params, targets, o);
   EngineSession session;
   if (preset) session.pixelMaps = *preset;
-  std::vector<double> sum(p.params.size(), 0.0), sumSq(p.params.size(), 0.0);
+  std::vector<double> sum(p.params.size(), 0.0), sumSq(p.params.size(), 0.0), sum3(p.params.size(), 0.0), sum4(p.params.size(), 0.0);
   SamplerRun out;
   auto t0 = std::chrono::steady_clock::now();
   for (int i = 0; i < reps; ++i) {
@@ -44,14 +55,22 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler s
     out.stage1 += g.stats.secondsStage1;
     for (size_t k = 0; k < sum.size(); ++k) {
       sum[k] += g.gradient[k];
-      sumSq[k] += g.gradient[k] * g.gradient[k];
+      double g2 = g.gradient[k] * g.gradient[k];
+      sumSq[k] += g2;
+      sum3[k] += g2 * g.gradient[k];
+      sum4[k] += g2 * g2;
     }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  double varOfVariance = 0;
   for (size_t k = 0; k < sum.size(); ++k) {
-    double m = sum[k] / reps;
-    out.variance += (sumSq[k] / reps - m * m) * reps / std::max(1, reps - 1);
+    double m = sum[k] / reps, e2 = sumSq[k] / reps, e3 = sum3[k] / reps, e4 = sum4[k] / reps;
+    double var = e2 - m * m;
+    double m4 = e4 - 4 * m * e3 + 6 * m * m * e2 - 3 * m * m * m * m;
+    out.variance += var * reps / std::max(1, reps - 1);
+    varOfVariance += std::max(0.0, m4 - var * var) / reps;
   }
+  out.varianceSe = std::sqrt(varOfVariance);
   return out;
 }
 
@@ -95,12 +114,16 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   Problem p = buildProblem(job);
   std::cerr << "rendering targets (" << p.targetSpp << " spp)...\n";
   std::vector<Image> targets = renderTargets(p);
+  // The fixed theta: the job's start, or part of the way from the truth to it.
+  for (size_t k = 0; k < p.initial.size(); ++k) p.initial[k] = p.truth[k] + float(a.thetaFraction) * (p.initial[k] - p.truth[k]);
   int pixels = p.scene->width * p.scene->height;
   int n = a.samples > 0 ? a.samples : std::max(1, pixels / 5);
   BenchReport rep("pixel-variance");
   rep.text("scene", a.scene);
   rep.number("pixel_samples_per_view", n);
   rep.number("repetitions", a.reps);
+  rep.number("theta_fraction", a.thetaFraction, "(0: the truth, 1: the job's initial parameters)");
+  rep.number("param_error_at_theta", parameterError(p, p.initial));
   rep.number("defensive", a.defensive > 0 ? a.defensive : double(p.gradient.pixels.defensive));
   SamplerRun runs[3];
   const PixelSampler kinds[3] = {PixelSampler::Uniform, PixelSampler::LossGrad, PixelSampler::Adaptive};
@@ -112,8 +135,11 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   }
   js += "}";
   rep.raw("variance", js, js);
-  rep.number("ratio_loss_grad_over_adaptive", runs[1].variance / runs[2].variance, "(target >= 3)");
-  rep.number("ratio_uniform_over_adaptive", runs[0].variance / runs[2].variance);
+  std::string se = "{";
+  for (int i = 0; i < 3; ++i) se += std::string(i ? ", " : "") + "\"" + pixelSamplerName(kinds[i]) + "\": " + BenchReport::fmt(runs[i].varianceSe);
+  rep.raw("variance_se", se + "}", se + "} (standard errors)");
+  rep.number("ratio_loss_grad_over_adaptive", runs[1].variance / runs[2].variance, "= " + ratioWithSe(runs[1], runs[2]) + " (target >= 3)");
+  rep.number("ratio_uniform_over_adaptive", runs[0].variance / runs[2].variance, "= " + ratioWithSe(runs[0], runs[2]));
   rep.number("stage1_overhead_fraction", runs[2].stage1 / runs[2].seconds, "(target <= 0.10)");
   if (a.referenceSamples > 0) {
     std::cerr << "reference maps (" << a.referenceSamples << " stage-1 passes per view, every pixel)...\n";
@@ -123,8 +149,9 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
     SamplerRun rl = measure(p, targets, PixelSampler::LossGrad, n, a.reps, a.defensive, &refLossGrad);
     rep.raw("variance_reference_maps", "{\"loss_grad\": " + BenchReport::fmt(rl.variance) + ", \"adaptive\": " + BenchReport::fmt(ra.variance) + "}",
             "loss_grad " + BenchReport::fmt(rl.variance) + ", adaptive " + BenchReport::fmt(ra.variance) + " (maps from many stage-1 passes)");
-    rep.number("reference_ratio_loss_grad_over_adaptive", rl.variance / ra.variance, "(the bound on what a better stage 1 could reach)");
-    rep.number("reference_ratio_uniform_over_adaptive", runs[0].variance / ra.variance);
+    rep.number("reference_ratio_loss_grad_over_adaptive", rl.variance / ra.variance,
+               "= " + ratioWithSe(rl, ra) + " (with maps from many stage-1 passes)");
+    rep.number("reference_ratio_uniform_over_adaptive", runs[0].variance / ra.variance, "= " + ratioWithSe(runs[0], ra));
   }
   return rep;
 }
@@ -139,6 +166,9 @@ void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   c->add_option("--reference-maps", a->referenceSamples,
                 "also measure adaptive and loss_grad with reference maps averaged over this many stage-1 passes at every pixel")
       ->check(CLI::Range(1, 100000));
+  c->add_option("--theta-fraction", a->thetaFraction, "measure at truth + f (initial - truth): 1 the start, small f near convergence")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   c->add_flag("--json", a->json, "print the figures as JSON");
   c->callback([a, &exitCode] {
     benchPixelVariance(*a).print(a->json);

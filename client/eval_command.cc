@@ -62,6 +62,7 @@ struct Suite {
   GradientsArgs gradients;
   OverheadArgs overhead;
   PixelBenchArgs pixelVariance;
+  std::vector<double> pixelThetaFractions = {1.0};  // measure the pixel samplers at each of these θ
 };
 
 constexpr GradientMethod kPt = GradientMethod::Pt, kRis = GradientMethod::Ris, kRestir = GradientMethod::Restir;
@@ -102,6 +103,8 @@ Suite makeSuite(bool quick) {
     s.imageErrorViews = 2;
     s.checkpoints = 8;
     s.pixelVariance.reps = 512;
+    s.pixelVariance.referenceSamples = 32;
+    s.pixelThetaFractions = {1.0, 0.1};  // the job's start, and near convergence
   }
   s.gradients.scene = "ajar";
   s.overhead.scene = "oxalis";
@@ -440,8 +443,13 @@ void runEval(const EvalArgs& a) {
     tables.push_back(benchGradients(suite.gradients));
     std::cerr << "[tables] ReSTIR overhead on " << suite.overhead.scene << "...\n";
     tables.push_back(benchOverhead(suite.overhead));
-    std::cerr << "[tables] pixel-sampler variance on " << suite.pixelVariance.scene << " (" << suite.pixelVariance.reps << " reps)...\n";
-    tables.push_back(benchPixelVariance(suite.pixelVariance));
+    for (double f : suite.pixelThetaFractions) {
+      std::cerr << "[tables] pixel-sampler variance on " << suite.pixelVariance.scene << " (" << suite.pixelVariance.reps
+                << " reps, theta fraction " << f << ")...\n";
+      PixelBenchArgs pa = suite.pixelVariance;
+      pa.thetaFraction = f;
+      tables.push_back(benchPixelVariance(pa));
+    }
   }
   double total = std::chrono::duration<double>(Clock::now() - t0).count();
   Machine m = describeMachine();

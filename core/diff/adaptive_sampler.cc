@@ -1,9 +1,15 @@
 // Adaptive pixel sampling (Yan et al. 2025, Eq. 12, 16, 18): p_j proportional to sqrt(p_j1 p_j2),
 // with p_j1 = (dL/dI_j)^2 and p_j2 = sum_k (dI_j/dtheta_k)^2, combined over resolution levels.
 //
-// Level d groups 2^d x 2^d stage-1 cells into a block. A block's p1 uses the mean of its cells'
-// dL/dI (the loss gradient of the downsampled image); its p2 is the mean of the cells' p2 (the
-// per-path squared derivatives; cross-pixel correlations of shared parameters are not tracked).
+// Level d groups 2^d x 2^d stage-1 cells into a block; the block's p1 and p2 are the means of its
+// cells' one-sample (dL/dI)^2 and sum_k (dI/dtheta_k)^2: pooled second moments, which is what the
+// variance of the mini-batch estimator depends on (E[g^2] = E[(dL/dI)^2] E[(dI/dtheta)^2] for the
+// independent primal and derivative paths). Squaring the block's mean dL/dI instead (the loss
+// gradient of a downsampled image) cancels the noise part: near convergence, where dL/dI is
+// mostly noise, that starved pixels the stage-2 noise still reaches and doubled the variance
+// (mirror, 1024 reps, roughness 10 % of the way from the truth: variance 0.139 +- 0.036 against
+// 0.072 +- 0.009 pooled; at the job's start the two tie, 0.00177 and 0.00189 +- 0.00008).
+// Cross-pixel correlations of shared parameters are not tracked.
 // Each level's sqrt(p1 p2) is normalised over its blocks and spread over the block's cells, and
 // the levels are summed with equal mass: our reading of Eq. 18, whose 4^d factor converts a
 // block's probability into per-pixel units. Fine levels favour detailed regions (textures),
@@ -23,19 +29,19 @@ std::vector<float> adaptiveMap(const Stage1& s, int levels) {
     if (d > 0 && bw * bh == 1 && d > 1) break;  // coarser levels add nothing new
     std::vector<double> q(size_t(bw) * size_t(bh), 0.0);
     std::vector<int> count(q.size(), 0);
-    std::vector<double> adj(q.size() * 3, 0.0), p2(q.size(), 0.0);
+    std::vector<double> p2(q.size(), 0.0), adj2(q.size(), 0.0);
     for (int y = 0; y < gh; ++y)
       for (int x = 0; x < gw; ++x) {
         size_t c = size_t(y * gw + x), k = size_t((y / b) * bw + x / b);
-        for (int ch = 0; ch < 3; ++ch) adj[3 * k + size_t(ch)] += double(s.adjoint[3 * c + size_t(ch)]);
+        for (int ch = 0; ch < 3; ++ch) adj2[k] += double(s.adjoint[3 * c + size_t(ch)]) * s.adjoint[3 * c + size_t(ch)];
         p2[k] += double(s.derivSq[c]);
         ++count[k];
       }
     double total = 0;
     for (size_t k = 0; k < q.size(); ++k) {
       if (!count[k]) continue;
-      double n = double(count[k]), p1 = 0;
-      for (int ch = 0; ch < 3; ++ch) p1 += (adj[3 * k + size_t(ch)] / n) * (adj[3 * k + size_t(ch)] / n);
+      double n = double(count[k]);
+      double p1 = adj2[k] / n;
       q[k] = std::sqrt(p1 * (p2[k] / n));
       if (std::isfinite(q[k])) total += q[k];
       else q[k] = 0;
