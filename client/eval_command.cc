@@ -192,9 +192,9 @@ std::string shortName(const std::string& slot) {  // materials/mirror/roughness 
   return p == std::string::npos ? slot : slot.substr(p + 1);
 }
 
-std::string scalarValues(const ParameterSlot& s, const std::vector<float>& theta) {
+std::string scalarValues(const ParameterSlot& s, const std::vector<float>& theta, const char* separator = " ") {
   std::string o;
-  for (uint32_t k = 0; k < s.size; ++k) o += (k ? " " : "") + fmt(double(theta[s.offset + k]));
+  for (uint32_t k = 0; k < s.size; ++k) o += (k ? separator : "") + fmt(double(theta[s.offset + k]));
   return o;
 }
 
@@ -325,11 +325,11 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
   drawConvergenceChart({dir / "convergence.csv"}, dir / "image_error.png", "seconds", "image_error", title);
   drawSideBySide(dir, r, p, meter);
   for (const auto& s : p.params.slots())
-    if (s.width <= 0) r.truthScalars.push_back({s.name, scalarValues(s, p.truth)});
+    if (s.width <= 0) r.truthScalars.push_back({s.name, scalarValues(s, p.truth, ", ")});
   for (const auto& m : r.methods) {
     std::vector<std::pair<std::string, std::string>> v;
     for (const auto& s : p.params.slots())
-      if (s.width <= 0) v.push_back({s.name, scalarValues(s, m.run.theta)});
+      if (s.width <= 0) v.push_back({s.name, scalarValues(s, m.run.theta, ", ")});
     r.methodScalars.push_back(v);
   }
   return r;
