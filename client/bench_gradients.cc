@@ -257,6 +257,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     errors.push_back(run.history.back().parameterError);
     rep.number("steps_" + v.name, run.history.back().step);
     rep.number("image_error_" + v.name, run.history.back().imageError);
+    if (!run.failure.empty()) rep.text("failure_" + v.name, run.failure);
   }
   std::string js = "{", shown;
   for (size_t i = 0; i < variants.size(); ++i) {

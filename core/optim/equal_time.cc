@@ -58,11 +58,18 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
     Evaluation e = evaluationAt(p, counter);
     e.renderOnly = false;  // the problem's own burn-in length does not apply to this method
     GradientResult g;
+    std::vector<float> previous = out.theta;
     timed([&] {
       g = evaluateShards(p, engine, sessions, out.theta, e);
       optimizerStep(p.optimizer, p.params, g.gradient, out.theta, state);
     });
-    checkDivergence(p, uint64_t(step), g.stats.loss, out.theta);
+    try {
+      checkDivergence(p, uint64_t(step), g.stats.loss, out.theta);
+    } catch (const InputError& diverged) {
+      out.failure = diverged.what();
+      out.theta = std::move(previous);
+      break;
+    }
     out.nonFiniteSamples += g.stats.nonFiniteSamples;
     out.secondsStage1 += g.stats.secondsStage1;
     EqualTimePoint pt;
@@ -77,6 +84,8 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
     }
     record(pt);
   }
+  if (!out.failure.empty() && meter && !std::isfinite(out.history.back().imageError))
+    out.history.back().imageError = meter->measure(out.theta);
   p.params.write(out.theta, *p.scene);
   return out;
 }

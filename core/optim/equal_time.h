@@ -32,6 +32,9 @@ struct EqualTimeRun {
   std::vector<EqualTimePoint> history;
   uint64_t nonFiniteSamples = 0;
   double secondsStage1 = 0;
+  // Set when the run diverged (checkDivergence's message); theta and history end at the last
+  // good step, so a comparison can report the failure and go on.
+  std::string failure;
 };
 
 // CSV of equal-time runs: the convergence CSV's columns plus the image error (empty between

@@ -55,13 +55,29 @@ def chart(out, x, y, title, inputs):
         sys.exit(f"nothing to plot: no run has positive '{y}' values")
     # Runs of the same method are told apart by their folders.
     methods = [r[0] for r in runs]
+    smoothed = False
     for method, folder, pts in runs:
         label = f"{method} ({folder})" if methods.count(method) > 1 else method
-        marker = "o" if len(pts) <= 12 else None  # sparse series (image error) show their points
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], label=label, linewidth=1.4, marker=marker, markersize=3)
+        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+        if len(pts) > 100:
+            # Long noisy runs (a scalar oscillating around its optimum) are unreadable raw: draw
+            # them faintly, and over them the RMS of the last 2 % of the points.
+            line = ax.plot(xs, ys, linewidth=0.5, alpha=0.25)[0]
+            w = max(5, len(ys) // 50)
+            acc, rms = 0.0, []
+            for i, v in enumerate(ys):
+                acc += v * v
+                if i >= w:
+                    acc -= ys[i - w] * ys[i - w]
+                rms.append((max(acc, 0.0) / min(i + 1, w)) ** 0.5)
+            ax.plot(xs, rms, label=label, linewidth=1.6, color=line.get_color())
+            smoothed = True
+        else:
+            marker = "o" if len(pts) <= 12 else None  # sparse series (image error) show their points
+            ax.plot(xs, ys, label=label, linewidth=1.4, marker=marker, markersize=3)
     ax.set_yscale("log")
     ax.set_xlabel(LABELS.get(x, x))
-    ax.set_ylabel(LABELS.get(y, y))
+    ax.set_ylabel(LABELS.get(y, y) + ("\n(bold: RMS over the last 2 % of steps; faint: every step)" if smoothed else ""))
     if title:
         ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)

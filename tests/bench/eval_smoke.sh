@@ -19,7 +19,7 @@ for name, scene in s["scenes"].items():
         path = os.path.join(out, scene[key])
         assert os.path.getsize(path) > 0, path
     for method, m in scene["methods"].items():
-        for key in ("param_error", "image_error", "seconds", "param_error_ratio_vs_baseline"):
+        for key in ("param_error", "param_error_tail", "image_error", "seconds", "param_error_tail_ratio_vs_baseline"):
             assert isinstance(m[key], (int, float)) and math.isfinite(m[key]), (name, method, key, m[key])
         assert m["steps"] >= 1, (name, method)
         assert m["seconds"] >= scene["budget_seconds_per_method"], (name, method, "stopped before its budget")

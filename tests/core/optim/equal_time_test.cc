@@ -43,6 +43,22 @@ TEST(EqualTime, SpendsItsBudgetAndMeasuresAtCheckpoints) {
   EXPECT_DOUBLE_EQ(run.history.back().parameterError, parameterError(p, run.theta));
 }
 
+TEST(EqualTime, ADivergingMethodStopsWithTheReasonAndItsLastGoodParameters) {
+  // Light intensities have no physical upper bound, so an absurd rate walks them past 1e30.
+  auto job = zooJob("tree");
+  job.mutable_optimization()->set_target_spp(2);
+  for (auto& prm : *job.mutable_optimization()->mutable_parameters()) prm.set_learning_rate(1e38);
+  Problem p = buildProblem(job);
+  auto targets = renderTargets(p);
+  EqualTimeOptions budget;
+  budget.seconds = 30;  // never reached: the run stops at the first bad step
+  EqualTimeRun run = runEqualTime(p, targets, p.gradient, budget, nullptr);
+  ASSERT_FALSE(run.failure.empty());
+  EXPECT_NE(run.failure.find("diverged"), std::string::npos) << run.failure;
+  for (float v : run.theta) EXPECT_TRUE(std::isfinite(v) && std::abs(v) <= kDivergenceLimit);
+  EXPECT_LT(run.history.back().seconds, budget.seconds);
+}
+
 TEST(EqualTime, RejectsANonPositiveBudget) {
   auto job = zooJob("cornell");
   job.mutable_optimization()->set_target_spp(1);
