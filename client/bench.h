@@ -11,7 +11,7 @@ namespace invr::cli {
 // Equal-time gradient error: relative MSE against a high-sample reference, PT vs RIS vs ReSTIR.
 struct GradientsArgs {
   std::string scene = "ajar";
-  int reps = 6, burnIn = 16, refEvaluations = 32, refSpp = 8;
+  int reps = 32, restirChains = 8, burnIn = 16, refEvaluations = 32, refSpp = 8;
   int neighbours = 0;  // 0: the job's default
   double mCap = 0;
   double radiusPixels = 0;

@@ -121,82 +121,142 @@ BenchReport benchGradients(const GradientsArgs& a) {
   rep.number("restir_m_cap", s.problem.gradient.restir.mCap);
   rep.number("restir_radius_pixels", s.problem.gradient.radiusPixels);
   rep.number("budget_seconds_per_step", budget, "s (ReSTIR at 1 spp)");
-  std::vector<double> relmse(3), seconds(3);
+  // Each method's relMSE is a mean over `reps` gradient evaluations, with its standard error.
+  // Consecutive ReSTIR steps share reservoirs and so are correlated; ReSTIR therefore runs
+  // `restirChains` independent chains (own seed, own burn-in) and its standard error comes from the
+  // chain means, which are independent.
+  std::vector<double> relmse(3), relmseSe(3), seconds(3);
   for (int mi = 0; mi < 3; ++mi) {
     GradientMethod m = kMethods[mi];
     int spp = 1;
     if (m != GradientMethod::Restir) spp = std::max(1, int(std::lround(budget / stepSeconds(s, m, 1, 0))));
     GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, m, spp));
-    EngineSession session;
-    GradientRequest r;
-    r.views = views;
-    r.seed = 12345;
-    int burn = m == GradientMethod::Restir ? a.burnIn : 0;
-    for (int b = 0; b < burn; ++b) {
-      GradientRequest rb = r;
-      rb.renderOnly = true;
-      rb.step = uint64_t(b);
-      engine.evaluate(s.problem.initial, rb, session);
+    const bool restir = m == GradientMethod::Restir;
+    const int chains = restir ? std::max(1, std::min(a.restirChains, a.reps)) : a.reps;
+    const int perChain = std::max(1, a.reps / chains);
+    std::vector<double> groupMeans;
+    double secs = 0;
+    int evaluations = 0;
+    for (int c = 0; c < chains; ++c) {
+      EngineSession session;
+      GradientRequest r;
+      r.views = views;
+      r.seed = 12345 + uint64_t(c) * 7919;
+      int burn = restir ? a.burnIn : 0;
+      for (int b = 0; b < burn; ++b) {
+        GradientRequest rb = r;
+        rb.renderOnly = true;
+        rb.step = uint64_t(b);
+        engine.evaluate(s.problem.initial, rb, session);
+      }
+      double groupErr = 0;
+      for (int i = 0; i < perChain; ++i) {
+        r.step = uint64_t(burn + i);
+        auto t0 = Clock::now();
+        auto g = engine.evaluate(s.problem.initial, r, session).gradient;
+        secs += since(t0);
+        ++evaluations;
+        groupErr += relativeSquaredError(g, ref) / perChain;
+      }
+      groupMeans.push_back(groupErr);
     }
-    double err = 0, secs = 0;
-    for (int i = 0; i < a.reps; ++i) {
-      r.step = uint64_t(burn + i);
-      auto t0 = Clock::now();
-      auto g = engine.evaluate(s.problem.initial, r, session).gradient;
-      secs += since(t0);
-      err += relativeSquaredError(g, ref) / a.reps;
-    }
-    relmse[size_t(mi)] = err;
-    seconds[size_t(mi)] = secs / a.reps;
+    double mean = 0, var = 0;
+    for (double e : groupMeans) mean += e / double(groupMeans.size());
+    for (double e : groupMeans) var += (e - mean) * (e - mean) / double(std::max<size_t>(1, groupMeans.size() - 1));
+    relmse[size_t(mi)] = mean;
+    relmseSe[size_t(mi)] = std::sqrt(var / double(groupMeans.size()));
+    seconds[size_t(mi)] = secs / evaluations;
     std::string name = gradientMethodName(m);
     rep.number("spp_" + name, spp);
-    rep.number("seconds_per_step_" + name, secs / a.reps, "s");
+    rep.number("seconds_per_step_" + name, seconds[size_t(mi)], "s");
   }
+  auto pm = [&](int i) { return BenchReport::fmt(relmse[size_t(i)]) + " +- " + BenchReport::fmt(relmseSe[size_t(i)]); };
   rep.raw("relmse", "{\"pt\": " + BenchReport::fmt(relmse[0]) + ", \"ris\": " + BenchReport::fmt(relmse[1]) +
                          ", \"restir\": " + BenchReport::fmt(relmse[2]) + "}",
-          "pt " + BenchReport::fmt(relmse[0]) + ", ris " + BenchReport::fmt(relmse[1]) + ", restir " + BenchReport::fmt(relmse[2]));
+          "pt " + pm(0) + ", ris " + pm(1) + ", restir " + pm(2) + " (+- one standard error)");
+  rep.raw("relmse_standard_error", "{\"pt\": " + BenchReport::fmt(relmseSe[0]) + ", \"ris\": " + BenchReport::fmt(relmseSe[1]) +
+                         ", \"restir\": " + BenchReport::fmt(relmseSe[2]) + "}",
+          "pt " + BenchReport::fmt(relmseSe[0]) + ", ris " + BenchReport::fmt(relmseSe[1]) + ", restir " + BenchReport::fmt(relmseSe[2]));
+  // Standard error of a ratio of independent means (delta method).
+  auto ratioSe = [&](int i, int j) {
+    double r = relmse[size_t(i)] / relmse[size_t(j)];
+    return r * std::hypot(relmseSe[size_t(i)] / relmse[size_t(i)], relmseSe[size_t(j)] / relmse[size_t(j)]);
+  };
   rep.number("reference_noise_floor", floor, "(relMSE the reference itself contributes; keep it well below restir's)");
-  rep.number("ratio_ris_over_restir", relmse[1] / relmse[2], "(target >= 10 on ajar or oxalis)");
-  rep.number("ratio_pt_over_restir", relmse[0] / relmse[2]);
+  rep.number("ratio_ris_over_restir", relmse[1] / relmse[2],
+             "+- " + BenchReport::fmt(ratioSe(1, 2)) + " (target >= 10 on ajar or oxalis)");
+  rep.number("ratio_ris_over_restir_standard_error", ratioSe(1, 2));
+  rep.number("ratio_pt_over_restir", relmse[0] / relmse[2], "+- " + BenchReport::fmt(ratioSe(0, 2)));
   // Step times match only to within one spp; relMSE x seconds compares work-normalised efficiency.
-  rep.number("efficiency_ratio_ris_over_restir", relmse[1] * seconds[1] / (relmse[2] * seconds[2]), "(relMSE x seconds)");
-  rep.number("efficiency_ratio_pt_over_restir", relmse[0] * seconds[0] / (relmse[2] * seconds[2]), "(relMSE x seconds)");
+  rep.number("efficiency_ratio_ris_over_restir", relmse[1] * seconds[1] / (relmse[2] * seconds[2]),
+             "+- " + BenchReport::fmt(ratioSe(1, 2) * seconds[1] / seconds[2]) + " (relMSE x seconds)");
+  rep.number("efficiency_ratio_pt_over_restir", relmse[0] * seconds[0] / (relmse[2] * seconds[2]),
+             "+- " + BenchReport::fmt(ratioSe(0, 2) * seconds[0] / seconds[2]) + " (relMSE x seconds)");
   return rep;
 }
 
 BenchReport benchOverhead(const OverheadArgs& a) {
   Setup s = makeSetup(a.scene, a.targetSpp);
-  // Equal samples: the same M candidates and spp; ReSTIR adds the kd-tree build, neighbour search,
-  // combination and reservoir bookkeeping. Interleave the two to share the machine's noise.
-  GradientEngine ris(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, GradientMethod::Ris, 1));
-  GradientEngine restir(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, GradientMethod::Restir, 1));
-  EngineSession sRis, sRestir;
+  // Equal samples: the same M candidates and spp; ReSTIR adds the neighbour search, combination
+  // and reservoir bookkeeping. Two ReSTIR variants: the default, which finds neighbours among last
+  // step's pixels when last step rendered the view (here: always), and the kd-tree search that
+  // multi-view batches use (a tree built per chain per step). Interleaved to share the machine's
+  // noise.
+  struct Variant {
+    std::string name;
+    GradientOptions options;
+    EngineSession session;
+    std::vector<double> seconds;
+    double split[4] = {0, 0, 0, 0};  // mean primal, derivative, upkeep seconds; shadow rays
+  };
+  std::vector<Variant> v(3);
+  v[0].name = "ris";
+  v[0].options = optionsFor(s.problem, GradientMethod::Ris, 1);
+  v[1].name = "restir";
+  v[1].options = optionsFor(s.problem, GradientMethod::Restir, 1);
+  v[2].name = "restir_kd_tree";
+  v[2].options = v[1].options;
+  v[2].options.pixelNeighbours = false;
+  std::vector<std::unique_ptr<GradientEngine>> engines;
+  for (auto& x : v) engines.push_back(std::make_unique<GradientEngine>(*s.problem.scene, s.problem.params, s.targets, x.options));
   GradientRequest r;
   r.views = viewsForStep(s.problem, 0);
   for (int b = 0; b < 4; ++b) {
     r.step = uint64_t(b);
     r.renderOnly = true;
-    restir.evaluate(s.problem.initial, r, sRestir);
+    for (size_t k = 1; k < v.size(); ++k) engines[k]->evaluate(s.problem.initial, r, v[k].session);
   }
   r.renderOnly = false;
-  std::vector<double> tRis, tRestir;
   for (int i = 0; i < a.steps; ++i) {
     r.step = uint64_t(4 + i);
-    auto t0 = Clock::now();
-    ris.evaluate(s.problem.initial, r, sRis);
-    tRis.push_back(since(t0));
-    t0 = Clock::now();
-    restir.evaluate(s.problem.initial, r, sRestir);
-    tRestir.push_back(since(t0));
+    for (size_t k = 0; k < v.size(); ++k) {
+      auto t0 = Clock::now();
+      GradientStats st = engines[k]->evaluate(s.problem.initial, r, v[k].session).stats;
+      v[k].seconds.push_back(since(t0));
+      v[k].split[0] += st.secondsPrimal / a.steps;
+      v[k].split[1] += st.secondsDerivative / a.steps;
+      v[k].split[2] += st.secondsReservoirUpdate / a.steps;
+      v[k].split[3] += double(st.rays.shadow) / a.steps;
+    }
   }
-  std::sort(tRis.begin(), tRis.end());
-  std::sort(tRestir.begin(), tRestir.end());
-  double ris50 = tRis[tRis.size() / 2], restir50 = tRestir[tRestir.size() / 2];
   BenchReport rep("overhead");
   rep.text("scene", a.scene);
-  rep.number("ris_seconds_per_step", ris50, "s (median)");
-  rep.number("restir_seconds_per_step", restir50, "s (median)");
-  rep.number("restir_overhead_fraction", (restir50 - ris50) / restir50, "(target <= 0.20)");
+  std::vector<double> median;
+  for (auto& x : v) {
+    std::sort(x.seconds.begin(), x.seconds.end());
+    median.push_back(x.seconds[x.seconds.size() / 2]);
+    rep.number(x.name + "_seconds_per_step", median.back(), "s (median)");
+  }
+  // Where the time goes: the two passes and, for ReSTIR, the reservoir upkeep (kd-tree builds,
+  // Alg. 8, the next step's store).
+  for (auto& x : v) {
+    rep.number(x.name + "_seconds_primal", x.split[0], "s (mean)");
+    rep.number(x.name + "_seconds_derivative", x.split[1], "s (mean)");
+    if (x.name != "ris") rep.number(x.name + "_seconds_reservoir_upkeep", x.split[2], "s (mean)");
+    rep.number(x.name + "_shadow_rays_per_step", x.split[3]);
+  }
+  rep.number("restir_overhead_fraction", (median[1] - median[0]) / median[1], "(target <= 0.20)");
+  rep.number("restir_kd_tree_overhead_fraction", (median[2] - median[0]) / median[2], "(neighbours from the kd-tree, as in multi-view batches)");
   return rep;
 }
 
@@ -287,6 +347,8 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   auto* g = bench.add_subcommand("gradients", "Equal-time gradient error (relative MSE vs a high-sample reference): PT, RIS, ReSTIR");
   g->add_option("--scene", ga->scene, "zoo scene (ajar or oxalis)")->capture_default_str();
   g->add_option("--reps", ga->reps, "gradient evaluations averaged per method")->capture_default_str();
+  g->add_option("--restir-chains", ga->restirChains, "independent ReSTIR chains the reps are split over (for the standard error)")
+      ->capture_default_str();
   g->add_option("--burn-in", ga->burnIn, "ReSTIR render-only steps before measuring")->capture_default_str();
   g->add_option("--ref-evaluations", ga->refEvaluations, "reference: ReSTIR steps averaged (independent chain)")->capture_default_str();
   g->add_option("--ref-spp", ga->refSpp, "reference: spp of each evaluation")->capture_default_str();

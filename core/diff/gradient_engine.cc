@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
+#include <algorithm>
 #include <chrono>
 #include <mutex>
 
@@ -140,7 +141,7 @@ struct GradientEngine::PassResult {
 // One pass over all pixels of one view. pass = kPrimal renders; kDerivative backpropagates
 // `adjoint` (dL/dI) into `gradient`. `store` (if set) receives one reservoir per pixel sample.
 GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
-                                                   std::vector<StoredReservoir>* store, const Image* adjoint,
+                                                   StoredReservoir* store, const Image* adjoint,
                                                    std::vector<double>* gradient, const std::vector<float>* pixelWeights,
                                                    std::vector<float>* derivSq) {
   const int W = scene_.width, H = scene_.height;
@@ -148,6 +149,30 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
   const bool backprop = gradient || derivSq;
   const Camera& cam = scene_.cameras[size_t(view)];
   const bool useRestir = opt_.method == GradientMethod::Restir && !(pass == kDerivative && opt_.forwardOnly);
+  // Where ReSTIR looks for a neighbour (one, by default) when last step rendered this view:
+  //  1. the reservoir a random pixel within the reuse radius left behind (offsets uniform over the
+  //     disk one pixel short of the radius, so that sub-pixel jitter rarely fails the world-space
+  //     test). Random rather than this pixel's own predecessor: on ajar (150 Adam steps, seeds
+  //     1-3) the own predecessor ended at 1.01-1.04x the starting parameter error, the kd-tree's
+  //     nearest at 0.94-0.96x and a random neighbour at 0.88-0.91x: mixing keeps one lucky sample
+  //     from pushing the same texel step after step;
+  //  2. this pixel's own predecessor;
+  //  3. a search: last step's pixels around this one when they hold every stored reservoir (one
+  //     view, nothing preserved, unmoved geometry), else the kd-tree. A point within the world
+  //     radius R px * t of this one projects at most R (t/z)(1 + |x/z|) pixels away per axis
+  //     (pinhole camera), plus one pixel for the two points' jitter: that bounds the window.
+  const uint32_t* probeItems = useRestir && prev && opt_.pixelNeighbours ? prev->pixelSlots(view) : nullptr;
+  const bool windowSearch = probeItems && prev->slotsCover(view);
+  std::vector<std::pair<int, int>> probeOffsets;
+  int windowHalf = 0;
+  if (probeItems) {
+    const int r = std::max(0, int(std::floor(opt_.radiusPixels - 1.f)));
+    for (int dy = -r; dy <= r; ++dy)
+      for (int dx = -r; dx <= r; ++dx)
+        if (dx * dx + dy * dy <= r * r) probeOffsets.push_back({dx, dy});
+    const float tx = cam.tanHalfFovY * float(W) / float(H), ty = cam.tanHalfFovY;
+    windowHalf = int(std::ceil(opt_.radiusPixels * (1.f + std::max(tx, ty)) * std::sqrt(1.f + tx * tx + ty * ty))) + 1;
+  }
   const float pixelFootprint = opt_.radiusPixels * 2.f * cam.tanHalfFovY / float(H);  // world radius per unit distance
   // Independent random streams per pass: the same step never reuses primal numbers for derivatives.
   const uint64_t passSeed = mix64(req.seed * 2 + uint64_t(pass) + 0x51ed27u);
@@ -182,7 +207,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
           const uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
           if (pixelWeights && (*pixelWeights)[size_t(pixel)] == 0.f) {  // not in this mini-batch
             if (store)
-              for (int s = 0; s < spp; ++s) (*store)[size_t(pixel) * size_t(spp) + size_t(s)].mesh = UINT32_MAX;
+              for (int s = 0; s < spp; ++s) store[size_t(pixel) * size_t(spp) + size_t(s)].mesh = UINT32_MAX;
             continue;
           }
           const uint64_t pixelHash = RngKey{passSeed, req.step, uint64_t(view), pixel, 0}.pixelHash();
@@ -264,7 +289,26 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 Reservoir r;
                 RestirSettings settings = opt_.restir;
                 settings.radius = pixelFootprint * hit.t;
-                if (sampleDirectRestir(scene_, sp, sampler, settings, prev, &ctx, p, r, &counters)) cs.add(p);
+                uint32_t tryFirst[2] = {UINT32_MAX, UINT32_MAX};
+                NeighbourHints hints;
+                if (probeItems) {
+                  const auto& o = probeOffsets[std::min(probeOffsets.size() - 1, size_t(sampler.next1D() * float(probeOffsets.size())))];
+                  int px = x + o.first, py = y + o.second;
+                  if (px >= 0 && py >= 0 && px < W && py < H) tryFirst[0] = probeItems[(size_t(py) * size_t(W) + size_t(px)) * size_t(spp) + size_t(s)];
+                  tryFirst[1] = probeItems[size_t(pixel) * size_t(spp) + size_t(s)];
+                  hints.items = tryFirst;
+                  hints.count = 2;
+                  if (windowSearch) {
+                    hints.slots = probeItems;
+                    hints.x = x;
+                    hints.y = y;
+                    hints.width = W;
+                    hints.height = H;
+                    hints.spp = spp;
+                    hints.half = windowHalf;
+                  }
+                }
+                if (sampleDirectRestir(scene_, sp, sampler, settings, prev, &ctx, p, r, &counters, &hints)) cs.add(p);
                 cs.hasReservoir = true;
                 cs.reservoir.r = r;
                 cs.reservoir.mesh = hit.mesh;
@@ -278,7 +322,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
               }
             }
             if (store) {
-              StoredReservoir& slot = (*store)[size_t(pixel) * size_t(spp) + size_t(s)];
+              StoredReservoir& slot = store[size_t(pixel) * size_t(spp) + size_t(s)];
               slot = cs.reservoir;
               if (!cs.hasReservoir) slot.r = Reservoir();  // misses and delta surfaces: empty (M = 0)
               if (!cs.hasReservoir) slot.mesh = UINT32_MAX;
@@ -343,9 +387,16 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
 
   auto t0 = std::chrono::steady_clock::now();
   if (restir) {
-    // The two chains are independent: build their kd-trees side by side.
-    tbb::parallel_invoke([&] { session.primal.refresh(scene_); },
-                         [&] { if (restirDerivative) session.derivative.refresh(scene_); });
+    // Re-place the reservoirs, and build a chain's kd-tree now if some view of the request will
+    // search it (built on first use, it would stall the other threads mid-pass). The two chains
+    // are independent: side by side.
+    auto prepare = [&](ReservoirStore& chain) {
+      chain.refresh(scene_);
+      bool needsTree = !chain.empty() && !opt_.pixelNeighbours;
+      for (int v : req.views) needsTree = needsTree || (!chain.empty() && !chain.slotsCover(v));
+      if (needsTree) chain.buildIndex();
+    };
+    tbb::parallel_invoke([&] { prepare(session.primal); }, [&] { if (restirDerivative) prepare(session.derivative); });
   }
   st.secondsReservoirUpdate += secondsSince(t0);
 
@@ -373,8 +424,13 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
 
   // Primal pass: images, loss, dL/dI.
   t0 = std::chrono::steady_clock::now();
+  // Next step's reservoirs, one slot per pixel sample, written in place by the passes into buffers
+  // recycled from the step before last (no fresh pages to fault in each step).
   std::vector<StoredReservoir> newPrimal, newDerivative;
-  if (restir) newPrimal.resize(req.views.size() * pixels * size_t(opt_.sppPrimal));
+  if (restir) {
+    newPrimal = session.primal.takeRecycled();
+    newPrimal.resize(req.views.size() * pixels * size_t(opt_.sppPrimal));
+  }
   std::vector<Image> adjoints(req.views.size());
   RestirCounters counters;
   auto checkCancel = [&] {
@@ -382,11 +438,9 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   };
   for (size_t k = 0; k < req.views.size(); ++k) {
     checkCancel();
-    std::vector<StoredReservoir> store(restir ? pixels * size_t(opt_.sppPrimal) : 0);
-    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, restir ? &store : nullptr, nullptr, nullptr,
-                            weightsOf(k));
+    StoredReservoir* store = restir ? newPrimal.data() + k * pixels * size_t(opt_.sppPrimal) : nullptr;
+    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, store, nullptr, nullptr, weightsOf(k));
     st.pixelsTraced += weights.empty() ? pixels : size_t(std::count_if(weights[k].begin(), weights[k].end(), [](float w) { return w > 0.f; }));
-    if (restir) std::move(store.begin(), store.end(), newPrimal.begin() + long(k * store.size()));
     st.rays += pr.rays;
     st.nonFiniteSamples += pr.nonFinite;
     counters.neighboursUsed += pr.restir.neighboursUsed;
@@ -405,14 +459,16 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   // Derivative pass: fresh paths weighted by dL/dI (or, during burn-in, only the reservoirs).
   t0 = std::chrono::steady_clock::now();
   if (!req.renderOnly || restirDerivative) {
-    if (restirDerivative) newDerivative.resize(req.views.size() * pixels * size_t(opt_.sppGradient));
+    if (restirDerivative) {
+      newDerivative = session.derivative.takeRecycled();
+      newDerivative.resize(req.views.size() * pixels * size_t(opt_.sppGradient));
+    }
     for (size_t k = 0; k < req.views.size(); ++k) {
       checkCancel();
-      std::vector<StoredReservoir> store(restirDerivative ? pixels * size_t(opt_.sppGradient) : 0);
-      PassResult pr = runPass(req.views[k], kDerivative, req, restirDerivative ? &session.derivative : nullptr,
-                              restirDerivative ? &store : nullptr, req.renderOnly ? nullptr : &adjoints[k],
+      StoredReservoir* store = restirDerivative ? newDerivative.data() + k * pixels * size_t(opt_.sppGradient) : nullptr;
+      PassResult pr = runPass(req.views[k], kDerivative, req, restirDerivative ? &session.derivative : nullptr, store,
+                              req.renderOnly ? nullptr : &adjoints[k],
                               req.renderOnly ? nullptr : &out.gradient, weightsOf(k));
-      if (restirDerivative) std::move(store.begin(), store.end(), newDerivative.begin() + long(k * store.size()));
       st.rays += pr.rays;
       st.nonFiniteSamples += pr.nonFinite;
     }
@@ -422,10 +478,24 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   // Next step's reservoirs: this step's, plus the old ones no view of the batch could see (Alg. 8).
   t0 = std::chrono::steady_clock::now();
   auto rebuild = [&](ReservoirStore& chain, std::vector<StoredReservoir>& fresh) {
-    std::vector<StoredReservoir> next;
-    next.reserve(fresh.size());
-    for (auto& r : fresh)
-      if (r.mesh != UINT32_MAX) next.push_back(r);
+    // Compact out the empty slots, remembering where each pixel sample's reservoir went (the next
+    // step tries it first, without a kd-tree search).
+    std::vector<StoredReservoir> next = std::move(fresh);
+    PixelSlots slots;
+    slots.views = req.views;
+    slots.slotsPerView = req.views.empty() ? 0 : next.size() / req.views.size();
+    slots.item.resize(next.size());
+    size_t kept = 0;
+    for (size_t i = 0; i < next.size(); ++i) {
+      if (next[i].mesh == UINT32_MAX) {
+        slots.item[i] = UINT32_MAX;
+        continue;
+      }
+      slots.item[i] = uint32_t(kept);
+      if (kept != i) next[kept] = next[i];
+      ++kept;
+    }
+    next.resize(kept);
     // Alg. 8: keep old reservoirs that no view of this batch can see. When the batch holds every
     // view and the geometry never moved, each old reservoir was seen by one of these views and is
     // visible still, so none would be kept: skip the visibility rays.
@@ -442,7 +512,8 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
       }
     }
     // Fresh items carry their hit's position; kept ones were re-placed by this step's refresh().
-    chain.assignPlaced(std::move(next), scene_.geometryVersion());
+    st.kdTreesBuilt += chain.hasIndex() ? 1 : 0;
+    chain.assignPlaced(std::move(next), scene_.geometryVersion(), std::move(slots));
   };
   if (restir) rebuild(session.primal, newPrimal);
   if (restirDerivative) rebuild(session.derivative, newDerivative);

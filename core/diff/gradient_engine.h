@@ -35,6 +35,9 @@ struct GradientOptions {
   float radiusPixels = 3.f;
   bool forwardOnly = false;   // restir in the primal pass only
   bool preserveOccluded = true;  // keep reservoirs no view of the batch sees (Alg. 8)
+  // Look for ReSTIR neighbours among last step's pixels first when last step rendered the view
+  // (see runPass); false always searches the kd-tree (tests and benchmarks of that path).
+  bool pixelNeighbours = true;
   int sppPrimal = 1;
   int sppGradient = 1;
   LossKind loss = LossKind::L2;
@@ -70,6 +73,7 @@ struct GradientStats {
   uint64_t nonFiniteSamples = 0;  // primal samples and derivative paths dropped
   size_t reservoirs = 0, reservoirsPreserved = 0;
   double meanNeighbours = 0, meanM = 0;
+  int kdTreesBuilt = 0;  // ReSTIR chains that needed their kd-tree this step (0-2)
   RayStats rays;
 };
 
@@ -99,7 +103,7 @@ class GradientEngine {
  private:
   struct PassResult;
   PassResult runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
-                     std::vector<StoredReservoir>* store, const Image* adjoint, std::vector<double>* gradient,
+                     StoredReservoir* store, const Image* adjoint, std::vector<double>* gradient,
                      const std::vector<float>* pixelWeights = nullptr, std::vector<float>* derivSq = nullptr);
   // Stage 1 of pixel sampling for one view: one path per cell of a sparse grid, primal and
   // derivative, plus first-hit guides (see pixel_sampler.h).

@@ -79,7 +79,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   p.gradient.restir.normalDot = r.normal_threshold() != 0 ? float(r.normal_threshold()) : 0.9f;
   if (r.m_cap() < 0 || !std::isfinite(r.m_cap())) fail("restir.m_cap", "must be a positive number");
   // While parameters change, old reservoirs go stale and a lucky high-weight sample can dominate
-  // its neighbours for many steps; a short memory and one (nearest) neighbour fix both. Measured
+  // its neighbours for many steps; a short memory and one neighbour fix both. Measured
   // on oxalis over 150 Adam steps: cap 160 / 4 neighbours 13 loss spikes, parameter RMSE 0.098;
   // cap 32 / 2: 3 spikes, 0.031; cap 16 / 1: 2 spikes, 0.027; cap 8 / 1: 0 spikes, 0.025.
   p.gradient.restir.mCap = r.m_cap() > 0 ? float(r.m_cap()) : 2.f * float(p.gradient.restir.candidates);

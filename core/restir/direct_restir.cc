@@ -31,7 +31,7 @@ float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRe
 // from zero do not change it.
 bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& s,
                         const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
-                        RestirCounters* counters) {
+                        RestirCounters* counters, const NeighbourHints* hints) {
   LightSample chosen;
   Rgb chosenF(0.f);
   bool poisoned = false;
@@ -41,7 +41,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   uint32_t nb[kMaxNeighbours];
   float nbM[kMaxNeighbours];
   int k = (prev && !prev->empty())
-              ? prev->neighbours(sp.hit->p, sp.hit->ns, std::min(s.neighbours, kMaxNeighbours), s.radius, s.normalDot, nb)
+              ? prev->neighbours(sp.hit->p, sp.hit->ns, std::min(s.neighbours, kMaxNeighbours), s.radius, s.normalDot, nb, hints)
               : 0;
 
   Reservoir c;

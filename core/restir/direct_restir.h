@@ -23,8 +23,9 @@ struct RestirCounters {
 
 // Samples one path. `combined` receives the reservoir to store for the next step (W = 0 when the
 // target at its sample is zero). `prev` may be null or empty (then this is plain RIS).
+// `hints` say where to look for neighbours first (see ReservoirStore::neighbours).
 bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& settings,
                         const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
-                        RestirCounters* counters = nullptr);
+                        RestirCounters* counters = nullptr, const NeighbourHints* hints = nullptr);
 
 }  // namespace invr

@@ -1,9 +1,12 @@
 // Reservoirs from the previous gradient step, anchored on surfaces (Wang et al. 2023, §4.2):
 // each keeps its shading point as (triangle, barycentrics) so it follows the geometry when
 // parameters change, and a kd-tree over the current shading points finds reuse candidates.
+// When the previous step rendered the query's own view, last step's pixels around the query are
+// searched instead (the same candidates, no tree to build).
 #pragma once
 
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "core/restir/reservoir.h"
@@ -21,6 +24,24 @@ struct StoredReservoir {
   Vec3 p, n;
 };
 
+// Which stored item each pixel sample of a pass produced: item[k * slotsPerView + slot] for the
+// k-th of `views` (UINT32_MAX: it stored none, e.g. a miss or a pixel outside the mini-batch).
+struct PixelSlots {
+  std::vector<int> views;
+  size_t slotsPerView = 0;
+  std::vector<uint32_t> item;
+};
+
+// What the caller knows about where to look before (or instead of) the kd-tree.
+struct NeighbourHints {
+  const uint32_t* items = nullptr;  // items to try first, in order (UINT32_MAX entries are skipped)
+  int count = 0;
+  // Set only if slotsCover(query's view): that view's pixelSlots and the query's pixel. Every
+  // sample of the pixels within `half` of (x, y) is searched instead of the kd-tree.
+  const uint32_t* slots = nullptr;
+  int x = 0, y = 0, width = 0, height = 0, spp = 1, half = 0;
+};
+
 class ReservoirStore {
  public:
   ReservoirStore();
@@ -33,22 +54,48 @@ class ReservoirStore {
   // New contents whose p and n must be (re)computed from their anchors by the next refresh().
   void assign(std::vector<StoredReservoir> items);
   // New contents whose p and n are already placed in geometry version `geometryVersion`.
-  void assignPlaced(std::vector<StoredReservoir> items, uint64_t geometryVersion);
+  // `slots` (optional) says which item each pixel sample of each view left behind.
+  void assignPlaced(std::vector<StoredReservoir> items, uint64_t geometryVersion, PixelSlots slots = {});
+  // The buffer the contents before the last assign lived in (empty, capacity kept), for the caller
+  // to fill with the next contents: steps reuse two buffers instead of allocating new pages.
+  std::vector<StoredReservoir> takeRecycled() {
+    std::vector<StoredReservoir> b = std::move(recycled_);
+    b.clear();
+    return b;
+  }
 
   // Re-places every shading point on the current geometry if it moved since the points were
-  // placed (light samples are re-placed lazily, on use), and rebuilds the kd-tree. Call before
-  // neighbours() whenever items or the scene changed.
+  // placed (light samples are re-placed lazily, on use) and drops the kd-tree, which the first
+  // search that needs it rebuilds. Call before neighbours() whenever items or the scene changed.
   void refresh(const Scene& scene);
 
-  // Up to k nearest reservoirs within `radius` of p whose normal n' has dot(n, n') >= normalDot.
-  // Returns how many indices were written to out (which must hold k entries).
-  int neighbours(Vec3 p, Vec3 n, int k, float radius, float normalDot, uint32_t* out) const;
+  // Up to k reservoirs within `radius` of p whose normal n' has dot(n, n') >= normalDot: first the
+  // acceptable ones among hints->items, then the closest of those found in the pixel window (when
+  // slotsCover) or the closest of the first few the kd-tree finds. Returns how many indices were
+  // written to out (which must hold k entries). Safe to call from many threads at once.
+  int neighbours(Vec3 p, Vec3 n, int k, float radius, float normalDot, uint32_t* out,
+                 const NeighbourHints* hints = nullptr) const;
+  // The items the pixel samples of `view` left behind (indexed by pixel * spp + sample), or null
+  // if the last assign did not record that view.
+  const uint32_t* pixelSlots(int view) const;
+  // True if every item was left behind by `view`'s pixel samples (one view, nothing preserved)
+  // and the geometry has not moved since: then a window of pixelSlots(view) around a query holds
+  // every item that can lie within the reuse radius.
+  bool slotsCover(int view) const;
   bool empty() const { return items_.empty(); }
+  // Whether a kd-tree is built at the moment (it is built on first need after refresh()).
+  bool hasIndex() const { return index_ != nullptr; }
+  // Builds the kd-tree now rather than on first need.
+  void buildIndex() const { index(); }
 
  private:
   struct Index;
-  std::vector<StoredReservoir> items_;
-  std::unique_ptr<Index> index_;
+  const Index& index() const;
+  std::vector<StoredReservoir> items_, recycled_;
+  PixelSlots slots_;
+  bool slotsComplete_ = false;  // slots_ index every item, placed where they were stored
+  mutable std::unique_ptr<Index> index_;
+  mutable std::unique_ptr<std::once_flag> indexOnce_ = std::make_unique<std::once_flag>();
   uint64_t placedVersion_ = UINT64_MAX;  // geometry version p and n were computed in
 };
 

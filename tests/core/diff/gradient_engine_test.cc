@@ -31,11 +31,12 @@ Fixture& fixture() {
   return f;
 }
 
-void checkMethod(GradientMethod method, bool forwardOnly = false) {
+void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeighbours = true) {
   Fixture& f = fixture();
   GradientOptions o;
   o.method = method;
   o.forwardOnly = forwardOnly;
+  o.pixelNeighbours = pixelNeighbours;
   o.sppPrimal = 4;
   o.sppGradient = 4;
   GradientEngine engine(*f.scene, f.reg, {f.target}, o);
@@ -74,6 +75,8 @@ TEST(GradientEngine, PtMatchesFiniteDifferences) { checkMethod(GradientMethod::P
 TEST(GradientEngine, RisMatchesFiniteDifferences) { checkMethod(GradientMethod::Ris); }
 TEST(GradientEngine, RestirMatchesFiniteDifferences) { checkMethod(GradientMethod::Restir); }
 TEST(GradientEngine, RestirForwardOnlyMatchesFiniteDifferences) { checkMethod(GradientMethod::Restir, true); }
+// Neighbours from the kd-tree only (what multi-view batches use), instead of last step's pixels.
+TEST(GradientEngine, RestirKdTreeNeighboursMatchFiniteDifferences) { checkMethod(GradientMethod::Restir, false, false); }
 
 TEST(GradientEngine, DeterministicForAnyThreadCount) {
   Fixture& f = fixture();
@@ -99,19 +102,24 @@ TEST(GradientEngine, DeterministicForAnyThreadCount) {
 
 TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {
   Fixture& f = fixture();
-  GradientOptions o;
-  o.method = GradientMethod::Restir;
-  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
-  EngineSession s;
-  GradientRequest r;
-  r.views = {0};
-  auto first = engine.evaluate(f.theta, r, s);
-  EXPECT_EQ(first.stats.meanNeighbours, 0.0);  // nothing to reuse yet
-  r.step = 1;
-  auto second = engine.evaluate(f.theta, r, s);
-  EXPECT_GT(second.stats.meanNeighbours, 0.9 * o.restir.neighbours);  // almost every point finds one
-  EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 1.5);    // and carries its confidence
-  EXPECT_GT(second.stats.reservoirs, 0u);
+  for (bool pixelNeighbours : {true, false}) {
+    GradientOptions o;
+    o.method = GradientMethod::Restir;
+    o.pixelNeighbours = pixelNeighbours;
+    GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+    EngineSession s;
+    GradientRequest r;
+    r.views = {0};
+    auto first = engine.evaluate(f.theta, r, s);
+    EXPECT_EQ(first.stats.meanNeighbours, 0.0);  // nothing to reuse yet
+    r.step = 1;
+    auto second = engine.evaluate(f.theta, r, s);
+    EXPECT_GT(second.stats.meanNeighbours, 0.9 * o.restir.neighbours) << pixelNeighbours;  // almost every point finds one
+    EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 1.5) << pixelNeighbours;    // and carries its confidence
+    EXPECT_GT(second.stats.reservoirs, 0u);
+    // One view, static scene: last step's pixels answer every search and no kd-tree is built.
+    EXPECT_EQ(second.stats.kdTreesBuilt, pixelNeighbours ? 0 : 2);
+  }
 }
 
 TEST(GradientEngine, BadRequestsAreInputErrors) {

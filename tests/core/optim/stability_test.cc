@@ -2,8 +2,9 @@
 // lit through a nearly closed door) one light sample per pixel gives gradients so noisy that
 // Adam walks the texture away from the truth, while ReSTIR's reused reservoirs keep improving it.
 // Seeds are fixed, so the run is deterministic. The margins come from three seeds (1, 2, 3) at
-// 150 steps: PT ended at 1.051-1.056x its starting error, ReSTIR at 0.937-0.960x, the ratio at
-// 1.10-1.12; the asserted margins leave room on either side.
+// 150 steps: PT ended at 1.051-1.056x its starting error, ReSTIR at 0.937-0.960x with nearest-
+// neighbour reuse and 0.88-0.91x since reuse tries a random nearby pixel's reservoir first (ratio
+// 1.10-1.12, now 1.16 on seed 1); the asserted margins leave room on either side.
 #include <gtest/gtest.h>
 
 #include <cstdio>

@@ -170,5 +170,100 @@ TEST(Restir, ReservoirsFollowTheSurfaceWhenTheMeshMoves) {
   EXPECT_NEAR(h.p.y, 0.3f, 1e-5f);
 }
 
+
+// Neighbour search: every result lies within the radius and passes the normal test, results are
+// distinct, hints are taken first, and the pixel-window search equals a brute-force nearest search.
+TEST(Restir, NeighbourSearchHonoursRadiusNormalsAndHints) {
+  Toy toy;
+  // A jittered 40 x 40 grid of shading points on the plane (spacing 0.01); every 7th one faces
+  // the other way, so the normal test has something to reject.
+  std::vector<StoredReservoir> items;
+  Sampler jitter(RngKey{11, 0, 0, 0});
+  for (int j = 0; j < 40; ++j)
+    for (int i = 0; i < 40; ++i) {
+      StoredReservoir r = anchoredAt(toy.hit);
+      r.p = Vec3(0.01f * (float(i) + jitter.next1D()), 0.f, 0.01f * (float(j) + jitter.next1D()));
+      r.n = (items.size() % 7 == 3) ? Vec3(0, -1, 0) : Vec3(0, 1, 0);
+      items.push_back(r);
+    }
+  PixelSlots slots;
+  slots.views = {2};
+  slots.slotsPerView = items.size();
+  for (size_t i = 0; i < items.size(); ++i) slots.item.push_back(uint32_t(i));
+  ReservoirStore store;
+  store.assignPlaced(items, toy.scene->geometryVersion(), slots);
+  store.refresh(*toy.scene);
+  ASSERT_NE(store.pixelSlots(2), nullptr);
+  EXPECT_EQ(store.pixelSlots(2)[17], 17u);
+  EXPECT_EQ(store.pixelSlots(0), nullptr);
+
+  const Vec3 up(0, 1, 0);
+  const float radius = 0.025f;
+  uint32_t out[8];
+  int withFour = 0;
+  for (int q = 0; q < 400; ++q) {
+    Vec3 p(0.05f + 0.3f * jitter.next1D(), 0.f, 0.05f + 0.3f * jitter.next1D());
+    int n = store.neighbours(p, up, 4, radius, 0.9f, out);
+    withFour += n == 4;
+    for (int a = 0; a < n; ++a) {
+      EXPECT_LE(length(items[out[a]].p - p), radius);
+      EXPECT_GT(dot(items[out[a]].n, up), 0.9f);
+      for (int b = 0; b < a; ++b) EXPECT_NE(out[a], out[b]);
+    }
+  }
+  EXPECT_GT(withFour, 390);  // about 15 acceptable points lie within the radius of each query
+
+  // Hints come first even when another item is closer, and are not repeated.
+  const Vec3 q(0.2f, 0.f, 0.2f);
+  uint32_t pred = UINT32_MAX;
+  float best = 0.f;
+  for (uint32_t i = 0; i < items.size(); ++i) {
+    float d = length(items[i].p - q);
+    if (items[i].n.y > 0.f && d < radius && d > best) best = d, pred = i;  // the farthest acceptable one
+  }
+  ASSERT_NE(pred, UINT32_MAX);
+  NeighbourHints hints;
+  uint32_t tryFirst[2] = {pred, pred};
+  hints.items = tryFirst;
+  hints.count = 2;
+  ASSERT_EQ(store.neighbours(q, up, 3, radius, 0.9f, out, &hints), 3);
+  EXPECT_EQ(out[0], pred);
+  EXPECT_NE(out[1], pred);
+  EXPECT_NE(out[2], pred);
+  // A hint outside the radius, or facing away, is not used.
+  tryFirst[0] = 0;  // at the grid's corner, far from q
+  hints.count = 1;
+  ASSERT_EQ(store.neighbours(q, up, 1, radius, 0.9f, out, &hints), 1);
+  EXPECT_NE(out[0], 0u);
+  tryFirst[0] = 3;  // faces down
+  ASSERT_EQ(store.neighbours(items[3].p, up, 1, radius, 0.9f, out, &hints), 1);
+  EXPECT_NE(out[0], 3u);
+
+  // The pixel-window search (one "pixel" per grid cell here) finds the nearest acceptable item,
+  // the same as a brute-force search, and never builds the kd-tree.
+  ASSERT_TRUE(store.slotsCover(2));
+  EXPECT_FALSE(store.slotsCover(0));
+  store.refresh(*toy.scene);
+  NeighbourHints window;
+  window.slots = store.pixelSlots(2);
+  window.width = 40;
+  window.height = 40;
+  window.half = 4;  // radius 2.5 cells + one cell of jitter, rounded up
+  for (int t = 0; t < 300; ++t) {
+    window.x = 2 + int(jitter.next1D() * 36.f);
+    window.y = 2 + int(jitter.next1D() * 36.f);
+    Vec3 p(0.01f * (float(window.x) + jitter.next1D()), 0.f, 0.01f * (float(window.y) + jitter.next1D()));
+    uint32_t nearest = UINT32_MAX;
+    float nearestD = radius * radius;
+    for (uint32_t i = 0; i < items.size(); ++i)
+      if (items[i].n.y > 0.9f && lengthSquared(items[i].p - p) <= nearestD) nearestD = lengthSquared(items[i].p - p), nearest = i;
+    ASSERT_EQ(store.neighbours(p, up, 1, radius, 0.9f, out, &window), 1);
+    EXPECT_EQ(out[0], nearest);
+  }
+  EXPECT_FALSE(store.hasIndex());
+  store.neighbours(q, up, 1, radius, 0.9f, out);  // no hints: the kd-tree, built on demand
+  EXPECT_TRUE(store.hasIndex());
+}
+
 }  // namespace
 }  // namespace invr
