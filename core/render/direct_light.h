@@ -96,10 +96,37 @@ inline DirectPath pathToLight(const ShadingPoint& sp, const LightSample& ls, Rgb
 // half is added by whoever traces the BSDF ray). False if the sample contributes nothing.
 bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out);
 
+// Shadow-ray results for delta lights from one shading point. A point or spot light is a single
+// sample, so RIS candidates that pick it again (and ReSTIR neighbours that carry it) need no new
+// ray: the answer is the same.
+class DeltaVisibility {
+ public:
+  // Occlusion of ls (a sample of light `light`) from sp, tracing only on the first ask per delta light.
+  bool occluded(const Scene& scene, const ShadingPoint& sp, const LightSample& ls, PathContext* ctx) {
+    if (!ls.delta) return traceShadow(scene, sp, ls, ctx);
+    for (int i = 0; i < n_; ++i)
+      if (light_[i] == ls.ref.light) return occluded_[i];
+    bool o = traceShadow(scene, sp, ls, ctx);
+    if (n_ < kSlots) {
+      light_[n_] = ls.ref.light;
+      occluded_[n_++] = o;
+    }
+    return o;
+  }
+
+ private:
+  static constexpr int kSlots = 8;
+  uint32_t light_[kSlots];
+  bool occluded_[kSlots];
+  int n_ = 0;
+};
+
 // Streaming RIS core (Alg. 1): the reservoir after M candidates, and the chosen sample's data.
 // A candidate with a non-finite target sets *nonFinite (the caller drops the whole sample).
+// `visibility` (optional) carries delta-light shadow rays to the caller's later tests at sp.
 Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
-                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite = nullptr);
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite = nullptr,
+                    DeltaVisibility* visibility = nullptr);
 
 // Baseline B.2: streaming RIS over M candidates drawn by the NEE strategy (Alg. 1). The target
 // includes visibility when visibilityInTarget (Eq. 14), else not (Eq. 17). `reservoir` receives

@@ -6,7 +6,9 @@ namespace invr {
 // nothing); the source density is pmf(light) * pdfNative and the target uses the same measure,
 // so w = p_hat / p_c is well defined for delta, area and environment lights alike.
 Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
-                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite) {
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite, DeltaVisibility* visibility) {
+  DeltaVisibility local;
+  if (!visibility) visibility = &local;
   Reservoir r;
   if (scene.lights.empty()) return r;
   for (int m = 0; m < candidates; ++m) {
@@ -23,7 +25,7 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
       if (nonFinite) *nonFinite = true;
       target = 0.f;
     }
-    if (target > 0.f && visibilityInTarget && traceShadow(scene, sp, ls, ctx)) target = 0.f;
+    if (target > 0.f && visibilityInTarget && visibility->occluded(scene, sp, ls, ctx)) target = 0.f;
     double w = target > 0.f ? double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
     if (r.update(ls.ref, w, target, uPick)) {
       chosen = ls;

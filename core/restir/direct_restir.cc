@@ -35,7 +35,8 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   LightSample chosen;
   Rgb chosenF(0.f);
   bool poisoned = false;
-  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF, &poisoned);
+  DeltaVisibility visibleHere;  // delta lights' shadow rays from sp, shared with the neighbours' tests
+  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF, &poisoned, &visibleHere);
 
   constexpr int kMaxNeighbours = 32;
   uint32_t nb[kMaxNeighbours];
@@ -61,7 +62,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
       poisoned = true;
       t = 0.f;
     }
-    if (t > 0.f && s.visibilityInTarget && traceShadow(scene, sp, ls, ctx)) t = 0.f;
+    if (t > 0.f && s.visibilityInTarget && visibleHere.occluded(scene, sp, ls, ctx)) t = 0.f;
     if (c.stream(q.r.y, double(t) * double(q.r.W) * double(nbM[i]), t, u)) {
       chosen = ls;
       chosenF = f;
