@@ -38,6 +38,7 @@ struct PixelBenchArgs {
   int targetSpp = 0;     // 0: the job's
   double thetaFraction = 1;  // theta = truth + f (initial - truth)
   int referenceSamples = 0;  // > 0: also measure with maps from this many stage-1 passes per pixel
+  std::string loss;          // empty: the job's
   bool json = false;
 };
 BenchReport benchPixelVariance(const PixelBenchArgs& args);

@@ -111,6 +111,7 @@ std::map<int, PixelMap> referenceMaps(Problem& p, const std::vector<Image>& targ
 BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   auto job = zooJob(a.scene);
   if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
+  if (!a.loss.empty()) job.mutable_optimization()->set_loss(a.loss);
   Problem p = buildProblem(job);
   std::cerr << "rendering targets (" << p.targetSpp << " spp)...\n";
   std::vector<Image> targets = renderTargets(p);
@@ -120,6 +121,7 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   int n = a.samples > 0 ? a.samples : std::max(1, pixels / 5);
   BenchReport rep("pixel-variance");
   rep.text("scene", a.scene);
+  rep.text("loss", job.optimization().loss());
   rep.number("pixel_samples_per_view", n);
   rep.number("repetitions", a.reps);
   rep.number("theta_fraction", a.thetaFraction, "(0: the truth, 1: the job's initial parameters)");
@@ -169,6 +171,7 @@ void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   c->add_option("--theta-fraction", a->thetaFraction, "measure at truth + f (initial - truth): 1 the start, small f near convergence")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  c->add_option("--loss", a->loss, "loss of the measured gradient (default: the job's)")->check(CLI::IsMember({"l2", "relative_l2", "l1"}));
   c->add_flag("--json", a->json, "print the figures as JSON");
   c->callback([a, &exitCode] {
     benchPixelVariance(*a).print(a->json);

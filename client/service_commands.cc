@@ -14,6 +14,7 @@
 #include <sstream>
 #include <thread>
 
+#include "client/bench_report.h"
 #include "client/commands.h"
 #include "client/embedded.h"
 #include "client/exit_codes.h"
@@ -184,8 +185,9 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
               << "nd pixel, 1 sample, edge-aware upsampling" << (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) << ")";
   std::cout << "\n  boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility\n"
             << "    discontinuity moves with them\n"
-            << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd") << ", " << p.steps
-            << " steps, " << p.viewsPerStep << " view(s) per step\n";
+            << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd")
+            << (p.schedule.halfLifeSteps > 0 ? " (learning rates halve after " + BenchReport::fmt(p.schedule.halfLifeSteps) + " steps)" : std::string())
+            << ", " << p.steps << " steps, " << p.viewsPerStep << " view(s) per step\n";
   std::cout << "targets: " << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp); parameter error reported"
                                                    : "uploaded images; no ground truth")
             << "\n";

@@ -943,7 +943,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         }
         ++step;
         checkDivergence(p, step, sum.stats.loss, theta);
-        optimizerStep(p.optimizer, p.params, sum.gradient, theta, state);
+        optimizerStep(p.optimizer, p.params, sum.gradient, theta, state, p.schedule);
         try {
           checkDivergence(p, step, sum.stats.loss, theta);
         } catch (const InputError& err) {

@@ -142,7 +142,7 @@ struct GradientEngine::PassResult {
 // `adjoint` (dL/dI) into `gradient`. `store` (if set) receives one reservoir per pixel sample.
 GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
                                                    StoredReservoir* store, const Image* adjoint,
-                                                   std::vector<double>* gradient, const std::vector<float>* pixelWeights,
+                                                   std::vector<double>* gradient, const PixelBatch* batch,
                                                    std::vector<float>* derivSq) {
   const int W = scene_.width, H = scene_.height;
   const int spp = pass == kPrimal ? opt_.sppPrimal : pass == kDerivative ? opt_.sppGradient : 1;
@@ -205,16 +205,20 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
       for (int y = ty * kTile; y < std::min(H, (ty + 1) * kTile); ++y)
         for (int x = tx * kTile; x < std::min(W, (tx + 1) * kTile); ++x) {
           const uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
-          if (pixelWeights && (*pixelWeights)[size_t(pixel)] == 0.f) {  // not in this mini-batch
+          if (batch && !batch->contains(size_t(pixel))) {  // not in this mini-batch
             if (store)
               for (int s = 0; s < spp; ++s) store[size_t(pixel) * size_t(spp) + size_t(s)].mesh = UINT32_MAX;
             continue;
           }
           const uint64_t pixelHash = RngKey{passSeed, req.step, uint64_t(view), pixel, 0}.pixelHash();
           double acc[3] = {0, 0, 0};
-          Rgb pixelAdjoint = adjoint ? adjoint->rgb(x, y) / float(spp) : Rgb(0.f);
-          for (int s = 0; s < spp; ++s) {
-            Sampler sampler(RngKey::withSample(pixelHash, uint64_t(s)));
+          // A pixel drawn c times into the mini-batch gets c times the samples, each on streams of
+          // its own (see PixelBatch); only the first draw's reservoirs are stored.
+          const int samples = spp * int(batch ? batch->draws[size_t(pixel)] : 1u);
+          Rgb pixelAdjoint = adjoint ? adjoint->rgb(x, y) / float(samples) : Rgb(0.f);
+          for (int sample = 0; sample < samples; ++sample) {
+            const int s = sample % spp;  // the reservoir slot this sample reads its hints from
+            Sampler sampler(RngKey::withSample(pixelHash, uint64_t(sample)));
             Vec3 d = cam.direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
             if (opt_.maxDepth > 1) {  // multi-bounce: path tracing, derivatives by path replay
               PathReplaySettings prs;
@@ -321,7 +325,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 cs.reservoir.n = hit.ns;
               }
             }
-            if (store) {
+            if (store && sample < spp) {
               StoredReservoir& slot = store[size_t(pixel) * size_t(spp) + size_t(s)];
               slot = cs.reservoir;
               if (!cs.hasReservoir) slot.r = Reservoir();  // misses and delta surfaces: empty (M = 0)
@@ -350,7 +354,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
               finishPath(pathGrad, tile, pixel);
             }
           }
-          res.image.setRgb(x, y, Rgb(float(acc[0] / spp), float(acc[1] / spp), float(acc[2] / spp)));
+          res.image.setRgb(x, y, Rgb(float(acc[0] / samples), float(acc[1] / samples), float(acc[2] / samples)));
         }
     }
     std::lock_guard lock(mergeMutex);  // integer counters: order does not matter
@@ -403,7 +407,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   // The pixel mini-batch of each view (Yan et al. 2025, stage 2), from maps refreshed by stage 1
   // every `refreshEvery` steps and kept in the session.
   const PixelSamplingOptions& po = opt_.pixels;
-  std::vector<std::vector<float>> weights;
+  std::vector<PixelBatch> batches;
   if (po.sampler != PixelSampler::All) {
     const int n = po.samplesPerView > 0 ? po.samplesPerView : std::max<int>(1, int(pixels / 4));
     for (int v : req.views) {
@@ -417,10 +421,11 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
         map = buildPixelMap(po, runStage1(v, req), req.step);
         st.secondsStage1 += secondsSince(t0);
       }
-      weights.push_back(drawPixelWeights(map, n, RngKey{req.seed, req.step, uint64_t(v), 0x9e1ec7u, 0}));
+      batches.push_back(drawPixelBatch(map, n, RngKey{req.seed, req.step, uint64_t(v), 0x9e1ec7u, 0}));
     }
   }
-  auto weightsOf = [&](size_t k) { return weights.empty() ? nullptr : &weights[k]; };
+  auto batchOf = [&](size_t k) { return batches.empty() ? nullptr : &batches[k]; };
+  auto weightsOf = [&](size_t k) { return batches.empty() ? nullptr : &batches[k].weight; };
 
   // Primal pass: images, loss, dL/dI.
   t0 = std::chrono::steady_clock::now();
@@ -439,8 +444,8 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   for (size_t k = 0; k < req.views.size(); ++k) {
     checkCancel();
     StoredReservoir* store = restir ? newPrimal.data() + k * pixels * size_t(opt_.sppPrimal) : nullptr;
-    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, store, nullptr, nullptr, weightsOf(k));
-    st.pixelsTraced += weights.empty() ? pixels : size_t(std::count_if(weights[k].begin(), weights[k].end(), [](float w) { return w > 0.f; }));
+    PassResult pr = runPass(req.views[k], kPrimal, req, restir ? &session.primal : nullptr, store, nullptr, nullptr, batchOf(k));
+    st.pixelsTraced += batches.empty() ? pixels : size_t(std::count_if(batches[k].draws.begin(), batches[k].draws.end(), [](uint32_t c) { return c > 0; }));
     st.rays += pr.rays;
     st.nonFiniteSamples += pr.nonFinite;
     counters.neighboursUsed += pr.restir.neighboursUsed;
@@ -468,7 +473,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
       StoredReservoir* store = restirDerivative ? newDerivative.data() + k * pixels * size_t(opt_.sppGradient) : nullptr;
       PassResult pr = runPass(req.views[k], kDerivative, req, restirDerivative ? &session.derivative : nullptr, store,
                               req.renderOnly ? nullptr : &adjoints[k],
-                              req.renderOnly ? nullptr : &out.gradient, weightsOf(k));
+                              req.renderOnly ? nullptr : &out.gradient, batchOf(k));
       st.rays += pr.rays;
       st.nonFiniteSamples += pr.nonFinite;
     }
@@ -535,18 +540,21 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req) {
   s.gh = (s.height + s.stride - 1) / s.stride;
   const size_t pixels = size_t(s.width) * size_t(s.height);
   // One pixel per cell, at its centre.
-  std::vector<float> cellPixels(pixels, 0.f);
+  PixelBatch cellPixels;
+  cellPixels.weight.assign(pixels, 0.f);
+  cellPixels.draws.assign(pixels, 0);
   std::vector<size_t> cellPixel(size_t(s.gw) * size_t(s.gh));
   for (int j = 0; j < s.gh; ++j)
     for (int i = 0; i < s.gw; ++i) {
       int x = std::min(s.width - 1, i * s.stride + s.stride / 2), y = std::min(s.height - 1, j * s.stride + s.stride / 2);
       cellPixel[size_t(j * s.gw + i)] = size_t(y) * size_t(s.width) + size_t(x);
-      cellPixels[cellPixel[size_t(j * s.gw + i)]] = 1.f;
+      cellPixels.weight[cellPixel[size_t(j * s.gw + i)]] = 1.f;
+      cellPixels.draws[cellPixel[size_t(j * s.gw + i)]] = 1;
     }
   // dL/dI from one primal sample per cell (no reservoirs: stage 1 leaves the chains alone).
   PassResult primal = runPass(view, kStage1Primal, req, nullptr, nullptr, nullptr, nullptr, &cellPixels);
   Image adjoint;
-  imageLoss(opt_.loss, primal.image, targets_[size_t(view)], &adjoint, 1, &cellPixels);
+  imageLoss(opt_.loss, primal.image, targets_[size_t(view)], &adjoint, 1, &cellPixels.weight);
   // Squared parameter derivatives of one path per cell (Eq. 16), with a unit adjoint.
   Image ones(s.width, s.height, 3);
   for (size_t p : cellPixel)

@@ -104,7 +104,7 @@ class GradientEngine {
   struct PassResult;
   PassResult runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
                      StoredReservoir* store, const Image* adjoint, std::vector<double>* gradient,
-                     const std::vector<float>* pixelWeights = nullptr, std::vector<float>* derivSq = nullptr);
+                     const PixelBatch* batch = nullptr, std::vector<float>* derivSq = nullptr);
   // Stage 1 of pixel sampling for one view: one path per cell of a sparse grid, primal and
   // derivative, plus first-hit guides (see pixel_sampler.h).
   Stage1 runStage1(int view, const GradientRequest& req);

@@ -96,16 +96,19 @@ PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t 
   return m;
 }
 
-std::vector<float> drawPixelWeights(const PixelMap& map, int n, RngKey key) {
+PixelBatch drawPixelBatch(const PixelMap& map, int n, RngKey key) {
   const Distribution1D& dist = map.dist;
-  std::vector<float> w(map.p.size(), 0.f);
+  PixelBatch b;
+  b.weight.assign(map.p.size(), 0.f);
+  b.draws.assign(map.p.size(), 0);
   Sampler sampler(key);
   for (int i = 0; i < n; ++i) {
     size_t j = dist.sample(sampler.next1D());
+    ++b.draws[j];
     // The distribution normalises p itself; use its pmf so the weights match what was drawn.
-    w[j] += 1.f / (float(n) * dist.pmf(j));
+    b.weight[j] += 1.f / (float(n) * dist.pmf(j));
   }
-  return w;
+  return b;
 }
 
 }  // namespace invr

@@ -74,8 +74,19 @@ std::vector<float> adaptiveMap(const Stage1& s, int levels);    // adaptive_samp
 // The sampler's probabilities from a stage-1 measurement (uniform needs none).
 PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step);
 
-// Draws N pixel samples from the map with counter-based randomness; returns per-pixel weights
-// count_j / (N p_j) (zero for pixels not drawn).
-std::vector<float> drawPixelWeights(const PixelMap& map, int n, RngKey key);
+// A mini-batch of one view: per pixel, how many of the N draws chose it and its weight
+// count_j / (N p_j) (both zero for pixels not drawn). Every draw gets paths of its own (Alg. 1
+// traces a camera ray per drawn index): a pixel drawn c times is traced c times as often. Tracing
+// it once and weighting by c instead would add the p-independent term sum_j Var(g_j), the
+// full-image estimator's own path variance, which dilutes any sampler's gain (and penalises
+// concentrated ones, whose pixels are drawn repeatedly).
+struct PixelBatch {
+  std::vector<float> weight;
+  std::vector<uint32_t> draws;
+  bool contains(size_t pixel) const { return draws[pixel] != 0; }
+};
+
+// Draws N pixel samples from the map with counter-based randomness.
+PixelBatch drawPixelBatch(const PixelMap& map, int n, RngKey key);
 
 }  // namespace invr

@@ -1,6 +1,7 @@
 #include "core/diff/problem.h"
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 
 #include "core/error.h"
@@ -60,6 +61,9 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   } catch (const InputError& e) {
     fail("optimizer", e.what());
   }
+  if (!(o.learning_rate_half_life() >= 0.0) || !std::isfinite(o.learning_rate_half_life()))
+    fail("learning_rate_half_life", "must be a finite number of steps >= 0 (0: constant learning rates)");
+  p.schedule.halfLifeSteps = o.learning_rate_half_life();
   auto positive = [&](const char* field, int v, int dflt, int max) {
     if (v < 0 || v > max) fail(field, "must be in 1.." + std::to_string(max) + " (got " + std::to_string(v) + ")");
     return v == 0 ? dflt : v;

@@ -18,6 +18,7 @@ struct Problem {
   std::vector<float> truth, initial;
   GradientOptions gradient;
   OptimizerKind optimizer = OptimizerKind::Adam;
+  LearningRateSchedule schedule;
   int steps = 100;
   int viewsPerStep = 0;  // 0: all
   int burnIn = 0;

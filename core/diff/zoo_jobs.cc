@@ -43,6 +43,14 @@ v1::JobSpec zooJob(const std::string& name) {
     param(o, "materials/mirror/roughness", 0.3, 0.01);
     o->set_method(v1::METHOD_PT);
     o->set_max_depth(3);
+    // Plain L2, as in Yan et al. 2025's mirror experiment. Relative L2 protects texels under dim
+    // lights, which a single roughness does not have; dividing by the target's square evens out
+    // the per-pixel gradient contributions, so that no pixel sampler can gain much (with maps
+    // from 256 stage-1 passes, even the variance-optimal p is only 1.9x better than uniform).
+    o->set_loss("l2");
+    // One parameter under noisy gradients: at a constant rate Adam leaves it swinging by about the
+    // rate (1e-2) around the truth, whatever the sampler; a decaying rate lets it settle.
+    o->set_learning_rate_half_life(50);
   } else if (name == "backlit") {
     param(o, "materials/object/albedo", 0.5, 0.02);
     o->set_views_per_step(4);

@@ -61,7 +61,7 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
     std::vector<float> previous = out.theta;
     timed([&] {
       g = evaluateShards(p, engine, sessions, out.theta, e);
-      optimizerStep(p.optimizer, p.params, g.gradient, out.theta, state);
+      optimizerStep(p.optimizer, p.params, g.gradient, out.theta, state, p.schedule);
     });
     try {
       checkDivergence(p, uint64_t(step), g.stats.loss, out.theta);

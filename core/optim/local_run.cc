@@ -72,7 +72,7 @@ LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&
   for (int s = 1; s <= p.steps; ++s, ++counter) {
     GradientResult g = evaluateAll(evaluationAt(p, counter));
     if (!std::isfinite(g.stats.loss)) checkDivergence(p, uint64_t(s), g.stats.loss, out.theta);
-    optimizerStep(p.optimizer, p.params, g.gradient, out.theta, state);
+    optimizerStep(p.optimizer, p.params, g.gradient, out.theta, state, p.schedule);
     checkDivergence(p, uint64_t(s), g.stats.loss, out.theta);
     StepReport rep;
     rep.step = uint64_t(s);

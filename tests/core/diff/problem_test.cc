@@ -37,6 +37,10 @@ TEST(Problem, JobMistakesNameTheField) {
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "steps": -5})"), "optimization.steps");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "loss": "l7"})"), "optimization.loss");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "optimizer": "lbfgs"})"), "optimization.optimizer");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "learning_rate_half_life": -3})"),
+                  "optimization.learning_rate_half_life: must be a finite number of steps >= 0");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "learning_rate_half_life": "Infinity"})"),
+                  "optimization.learning_rate_half_life");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "views_per_step": 3})"),
                   "optimization.views_per_step: must be in 1..1");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}], "restir": {"radius_pixels": -2}})"),

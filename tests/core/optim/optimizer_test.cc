@@ -52,6 +52,31 @@ TEST(Optimizer, SgdTakesExactSteps) {
   EXPECT_FLOAT_EQ(theta[0], 0.01f);  // roughness lower bound
 }
 
+TEST(Optimizer, LearningRatesDecayWithTheirHalfLife) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  ParameterOptions o;
+  o.learningRate = 0.1f;
+  reg.add(*scene, "materials/g/roughness", o);
+  std::vector<float> theta = reg.read(*scene);
+  OptimizerState st;
+  const LearningRateSchedule halfLife2{2.0};
+  // Steps of lr * 2 / (2 + t): 0.1, 0.0667, 0.05 for t = 0, 1, 2.
+  optimizerStep(OptimizerKind::Sgd, reg, {1.0}, theta, st, halfLife2);
+  EXPECT_FLOAT_EQ(theta[0], 0.3f);
+  optimizerStep(OptimizerKind::Sgd, reg, {1.0}, theta, st, halfLife2);
+  EXPECT_NEAR(theta[0], 0.3f - 0.1f * 2.f / 3.f, 1e-6f);
+  optimizerStep(OptimizerKind::Sgd, reg, {1.0}, theta, st, halfLife2);
+  EXPECT_NEAR(theta[0], 0.3f - 0.1f * 2.f / 3.f - 0.05f, 1e-6f);
+  EXPECT_EQ(LearningRateSchedule{}.factor(1000), 1.0);  // 0: constant
+  // Adam's step is the rate times a ratio of moments: a constant gradient moves by exactly the rate.
+  std::vector<float> a = reg.read(*scene);
+  OptimizerState sa;
+  optimizerStep(OptimizerKind::Adam, reg, {1.0}, a, sa, LearningRateSchedule{1.0});
+  optimizerStep(OptimizerKind::Adam, reg, {1.0}, a, sa, LearningRateSchedule{1.0});
+  EXPECT_NEAR(a[0], 0.4f - 0.1f - 0.05f, 1e-5f);
+}
+
 TEST(Parameters, NamesResolveOrFailClearly) {
   auto scene = test::sceneFromJson(kScene);
   ParameterRegistry reg;
