@@ -16,13 +16,23 @@ constexpr const char* kScene = R"({
   "views": [{"eye": {"z": 3}, "target": {}}]
 })";
 
-TEST(Optimizer, AdamConvergesOnAQuadraticAndRespectsBounds) {
-  auto scene = test::sceneFromJson(kScene);
+// One parameter of the scene above at a given learning rate, starting from the scene's value.
+struct Registered {
+  decltype(test::sceneFromJson(kScene)) scene = test::sceneFromJson(kScene);
   ParameterRegistry reg;
-  ParameterOptions o;
-  o.learningRate = 0.05f;
-  reg.add(*scene, "materials/m/albedo", o);
-  std::vector<float> theta = reg.read(*scene);
+  std::vector<float> theta;
+  Registered(const char* name, float learningRate) {
+    ParameterOptions o;
+    o.learningRate = learningRate;
+    reg.add(*scene, name, o);
+    theta = reg.read(*scene);
+  }
+};
+
+TEST(Optimizer, AdamConvergesOnAQuadraticAndRespectsBounds) {
+  Registered r("materials/m/albedo", 0.05f);
+  const ParameterRegistry& reg = r.reg;
+  std::vector<float>& theta = r.theta;
   const float target[3] = {0.2f, 0.9f, 1.7f};  // the last is outside [0, 1]: must stop at 1
   OptimizerState st;
   for (int i = 0; i < 400; ++i) {
@@ -37,12 +47,9 @@ TEST(Optimizer, AdamConvergesOnAQuadraticAndRespectsBounds) {
 }
 
 TEST(Optimizer, SgdTakesExactSteps) {
-  auto scene = test::sceneFromJson(kScene);
-  ParameterRegistry reg;
-  ParameterOptions o;
-  o.learningRate = 0.1f;
-  reg.add(*scene, "materials/g/roughness", o);
-  std::vector<float> theta = reg.read(*scene);
+  Registered r("materials/g/roughness", 0.1f);
+  const ParameterRegistry& reg = r.reg;
+  std::vector<float>& theta = r.theta;
   ASSERT_EQ(theta.size(), 1u);
   EXPECT_FLOAT_EQ(theta[0], 0.4f);
   OptimizerState st;
@@ -53,12 +60,9 @@ TEST(Optimizer, SgdTakesExactSteps) {
 }
 
 TEST(Optimizer, LearningRatesDecayWithTheirHalfLife) {
-  auto scene = test::sceneFromJson(kScene);
-  ParameterRegistry reg;
-  ParameterOptions o;
-  o.learningRate = 0.1f;
-  reg.add(*scene, "materials/g/roughness", o);
-  std::vector<float> theta = reg.read(*scene);
+  Registered r("materials/g/roughness", 0.1f);
+  const ParameterRegistry& reg = r.reg;
+  std::vector<float>& theta = r.theta;
   OptimizerState st;
   const LearningRateSchedule halfLife2{2.0};
   // Steps of lr * 2 / (2 + t): 0.1, 0.0667, 0.05 for t = 0, 1, 2.
@@ -70,7 +74,7 @@ TEST(Optimizer, LearningRatesDecayWithTheirHalfLife) {
   EXPECT_NEAR(theta[0], 0.3f - 0.1f * 2.f / 3.f - 0.05f, 1e-6f);
   EXPECT_EQ(LearningRateSchedule{}.factor(1000), 1.0);  // 0: constant
   // Adam's step is the rate times a ratio of moments: a constant gradient moves by exactly the rate.
-  std::vector<float> a = reg.read(*scene);
+  std::vector<float> a = reg.read(*r.scene);
   OptimizerState sa;
   optimizerStep(OptimizerKind::Adam, reg, {1.0}, a, sa, LearningRateSchedule{1.0});
   optimizerStep(OptimizerKind::Adam, reg, {1.0}, a, sa, LearningRateSchedule{1.0});
