@@ -177,9 +177,10 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
     std::cout << "; reuse: " << g.restir.neighbours << " neighbour(s) within " << g.radiusPixels << " px, M-cap " << g.restir.mCap
               << ", burn-in " << p.burnIn << (g.forwardOnly ? ", forward only" : "");
   std::cout << "\n  pixels: " << pixelSamplerName(g.pixels.sampler);
+  const int batchSamples = g.pixels.samplesPerView > 0 ? g.pixels.samplesPerView : int(pixels / 4);  // the engine's default
   if (g.pixels.sampler != PixelSampler::All)
-    std::cout << " mini-batch of " << (g.pixels.samplesPerView > 0 ? g.pixels.samplesPerView : int(pixels / 4))
-              << " pixel samples per view, weighted 1/(N p), defensive uniform share " << g.pixels.defensive;
+    std::cout << " mini-batch of " << batchSamples << " pixel samples per view, each traced, weighted 1/(N p), defensive uniform share "
+              << g.pixels.defensive;
   if (g.pixels.sampler == PixelSampler::LossGrad || g.pixels.sampler == PixelSampler::Adaptive)
     std::cout << "; stage-1 maps every " << g.pixels.refreshEvery << " steps (every " << g.pixels.stage1Stride
               << "nd pixel, 1 sample, edge-aware upsampling" << (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) << ")";
@@ -193,7 +194,9 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
             << "\n";
   size_t maxShard = 0;
   for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
-  double paths = double(p.viewsPerStep) * double(pixels) * double(g.sppPrimal + g.sppGradient);
+  // A mini-batch traces each of its N draws (a pixel drawn twice, twice); stage 1 comes on top.
+  const double pixelSamples = g.pixels.sampler == PixelSampler::All ? double(pixels) : double(batchSamples);
+  double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient);
   std::cout << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << paths / 1e6
             << " M camera paths per step\n";
   // Memory of one worker holding the largest shard: geometry and BVH, textures, targets and
