@@ -312,7 +312,11 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                     hints.half = windowHalf;
                   }
                 }
-                if (sampleDirectRestir(scene_, sp, sampler, settings, prev, &ctx, p, r, &counters, &hints)) cs.add(p);
+                uint8_t deltaKnown = 0, deltaVisible = 0;
+                if (sampleDirectRestir(scene_, sp, sampler, settings, prev, &ctx, p, r, &counters, &hints, &deltaKnown, &deltaVisible))
+                  cs.add(p);
+                cs.reservoir.deltaKnown = deltaKnown;
+                cs.reservoir.deltaVisible = deltaVisible;
                 cs.hasReservoir = true;
                 cs.reservoir.r = r;
                 cs.reservoir.mesh = hit.mesh;
@@ -430,7 +434,8 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
   // Primal pass: images, loss, dL/dI.
   t0 = std::chrono::steady_clock::now();
   // Next step's reservoirs, one slot per pixel sample, written in place by the passes into buffers
-  // recycled from the step before last (no fresh pages to fault in each step).
+  // recycled from the step before last (no fresh pages to fault in each step). runPass writes
+  // every slot (a reservoir, or mesh = UINT32_MAX), so the old contents never leak through.
   std::vector<StoredReservoir> newPrimal, newDerivative;
   if (restir) {
     newPrimal = session.primal.takeRecycled();

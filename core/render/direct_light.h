@@ -113,6 +113,15 @@ class DeltaVisibility {
     }
     return o;
   }
+  // What is known about delta lights 0..7 as bit masks (bit i: light i traced; light i visible).
+  void bits(uint8_t& known, uint8_t& visible) const {
+    known = visible = 0;
+    for (int i = 0; i < n_; ++i)
+      if (light_[i] < 8) {
+        known |= uint8_t(1u << light_[i]);
+        if (!occluded_[i]) visible |= uint8_t(1u << light_[i]);
+      }
+  }
 
  private:
   static constexpr int kSlots = 8;

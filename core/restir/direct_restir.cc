@@ -31,7 +31,7 @@ float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRe
 // from zero do not change it.
 bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& s,
                         const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
-                        RestirCounters* counters, const NeighbourHints* hints) {
+                        RestirCounters* counters, const NeighbourHints* hints, uint8_t* deltaKnown, uint8_t* deltaVisible) {
   LightSample chosen;
   Rgb chosenF(0.f);
   bool poisoned = false;
@@ -75,13 +75,22 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     // A neighbour's own sample was visible from its shading point when it was resampled (its
     // target, which includes V, was positive); with unmoved geometry it still is, so that one
     // support test needs no shadow ray.
+    // Likewise a delta light's visibility from a neighbour's point, if that point traced it when
+    // it was created.
     const bool staticGeometry = scene.geometryVersion() == 0;
+    const uint32_t yBit = c.y.light < 8 && scene.lights[c.y.light].isDelta() ? 1u << c.y.light : 0u;
     for (int i = 0; i < k; ++i) {
+      const StoredReservoir& q = prev->items()[nb[i]];
       bool needRay = s.visibilityInTarget && !(i == chosenFrom && staticGeometry);
-      if (targetAt(scene, prev->items()[nb[i]], c.y, needRay, ctx) > 0.f) Z += nbM[i];
+      if (needRay && staticGeometry && (q.deltaKnown & yBit)) {
+        if (!(q.deltaVisible & yBit)) continue;  // occluded there: outside that input's support
+        needRay = false;
+      }
+      if (targetAt(scene, q, c.y, needRay, ctx) > 0.f) Z += nbM[i];
     }
   }
   c.finalize(Z);
+  if (deltaKnown && deltaVisible) visibleHere.bits(*deltaKnown, *deltaVisible);
   if (poisoned) {  // counted and dropped by the caller; nothing non-finite is kept for reuse
     combined = Reservoir();
     if (counters) ++counters->shadingPoints;

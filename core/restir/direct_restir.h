@@ -26,6 +26,7 @@ struct RestirCounters {
 // `hints` say where to look for neighbours first (see ReservoirStore::neighbours).
 bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& settings,
                         const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
-                        RestirCounters* counters = nullptr, const NeighbourHints* hints = nullptr);
+                        RestirCounters* counters = nullptr, const NeighbourHints* hints = nullptr,
+                        uint8_t* deltaKnown = nullptr, uint8_t* deltaVisible = nullptr);
 
 }  // namespace invr

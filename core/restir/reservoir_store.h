@@ -20,6 +20,9 @@ struct StoredReservoir {
   float b1 = 0.f, b2 = 0.f;
   Vec3 woWorld;    // towards the camera that created it (its BSDF target depends on it)
   uint32_t view = 0;
+  // Shadow rays from this point to delta lights 0..7 traced when it was created (bit i: light i
+  // known, and visible). With unmoved geometry they still hold, so support tests need no new ray.
+  uint8_t deltaKnown = 0, deltaVisible = 0;
   // Derived from the anchor by refresh():
   Vec3 p, n;
 };
@@ -56,13 +59,11 @@ class ReservoirStore {
   // New contents whose p and n are already placed in geometry version `geometryVersion`.
   // `slots` (optional) says which item each pixel sample of each view left behind.
   void assignPlaced(std::vector<StoredReservoir> items, uint64_t geometryVersion, PixelSlots slots = {});
-  // The buffer the contents before the last assign lived in (empty, capacity kept), for the caller
-  // to fill with the next contents: steps reuse two buffers instead of allocating new pages.
-  std::vector<StoredReservoir> takeRecycled() {
-    std::vector<StoredReservoir> b = std::move(recycled_);
-    b.clear();
-    return b;
-  }
+  // The buffer the contents before the last assign lived in, for the caller to fill with the next
+  // contents: steps reuse two buffers instead of allocating new pages. It still holds those old
+  // items (clearing it would make the caller's resize construct every slot again, several MB a
+  // step), so the caller must overwrite every element it keeps.
+  std::vector<StoredReservoir> takeRecycled() { return std::move(recycled_); }
 
   // Re-places every shading point on the current geometry if it moved since the points were
   // placed (light samples are re-placed lazily, on use) and drops the kd-tree, which the first
