@@ -27,8 +27,9 @@ float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRe
 // whose support contains y, the result is unbiased for any M_j, so capping M (the M-cap) changes
 // variance, never the mean. We chose Z over generalised-RIS MIS weights because it needs one
 // target evaluation per neighbour for the chosen sample only (k + 1 instead of (k + 1)^2). The
-// support is evaluated in the current configuration; material and light parameters bounded away
-// from zero do not change it.
+// support test uses what the neighbour recorded when it was created where that is enough (below),
+// else the current configuration: material and light parameters bounded away from zero do not
+// change the support.
 bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& s,
                         const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
                         RestirCounters* counters, const NeighbourHints* hints, uint8_t* deltaKnown, uint8_t* deltaVisible) {
@@ -72,21 +73,26 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   float Z = 0.f;
   if (c.targetY > 0.f) {
     Z = fresh.M;  // fresh candidates come from light sampling here: they cover every y with target > 0
-    // A neighbour's own sample was visible from its shading point when it was resampled (its
-    // target, which includes V, was positive); with unmoved geometry it still is, so that one
-    // support test needs no shadow ray.
-    // Likewise a delta light's visibility from a neighbour's point, if that point traced it when
-    // it was created.
+    // On unmoved geometry, what a neighbour's point knew when it was created answers its support
+    // test without re-evaluating the target there (surface, texture, BSDF, light, shadow ray):
+    // - its own sample had a positive target there, visibility included (W > 0);
+    // - a delta light it traced had a positive target there (rays are traced only for those), and
+    //   the ray says whether it was visible.
+    // That is the support of the distribution its sample was drawn from, so it is the exact test;
+    // re-evaluating in the current configuration agrees unless a parameter reached zero.
     const bool staticGeometry = scene.geometryVersion() == 0;
     const uint32_t yBit = c.y.light < 8 && scene.lights[c.y.light].isDelta() ? 1u << c.y.light : 0u;
     for (int i = 0; i < k; ++i) {
       const StoredReservoir& q = prev->items()[nb[i]];
-      bool needRay = s.visibilityInTarget && !(i == chosenFrom && staticGeometry);
-      if (needRay && staticGeometry && (q.deltaKnown & yBit)) {
-        if (!(q.deltaVisible & yBit)) continue;  // occluded there: outside that input's support
-        needRay = false;
+      if (staticGeometry && i == chosenFrom) {
+        Z += nbM[i];
+        continue;
       }
-      if (targetAt(scene, q, c.y, needRay, ctx) > 0.f) Z += nbM[i];
+      if (staticGeometry && (q.deltaKnown & yBit)) {
+        if (q.deltaVisible & yBit) Z += nbM[i];
+        continue;
+      }
+      if (targetAt(scene, q, c.y, s.visibilityInTarget, ctx) > 0.f) Z += nbM[i];
     }
   }
   c.finalize(Z);
