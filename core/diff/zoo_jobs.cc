@@ -40,8 +40,9 @@ v1::JobSpec zooJob(const std::string& name) {
     // Even so, at a constant rate oxalis's error grows again once the first ~150 steps have removed
     // most of the initial error (ReSTIR: 0.041 at step 150, 0.049 at step 1100) while the walk
     // spreads to its stationary width; a decaying rate lets it settle instead. Ajar keeps a
-    // constant rate: there it would mostly hide how far PT's gradients walk the texture away
-    // (PT 0.48 -> 0.20, ReSTIR 0.135 -> 0.118 at 60 s), the failure that scene is there to show.
+    // constant rate: there the decay would mostly hide how far PT's gradients walk the texture
+    // away (bench reconstruct: PT 0.48 -> 0.20, ReSTIR 0.13 -> 0.12), the failure that scene is
+    // there to show.
     if (name == "oxalis") o->set_learning_rate_half_life(100);
   } else if (name == "mirror") {
     // The objects reach the image through the glossy mirror: gradients need paths of at least
