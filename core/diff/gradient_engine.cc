@@ -1,6 +1,7 @@
 #include "core/diff/gradient_engine.h"
 
 #include <tbb/blocked_range2d.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
@@ -122,7 +123,8 @@ bool visibleFromCamera(const Scene& scene, const Camera& cam, Vec3 p, Vec3 n) {
 }
 
 GradientEngine::GradientEngine(Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options)
-    : scene_(scene), params_(params), targets_(std::move(targets)), opt_(options) {
+    : scene_(scene), params_(params), targets_(std::move(targets)), opt_(options),
+      scratch_(std::make_unique<Scratch>(GradientScratch(params.size()))) {
   if (opt_.sppPrimal <= 0 || opt_.sppGradient <= 0) throw InputError("spp_primal and spp_gradient must be positive");
   if (opt_.restir.candidates <= 0) throw InputError("ris_candidates must be positive");
   if (!(opt_.radiusPixels > 0.f)) throw InputError("restir radius_pixels must be positive");
@@ -130,6 +132,13 @@ GradientEngine::GradientEngine(Scene& scene, const ParameterRegistry& params, st
   if (opt_.maxDepth > 1 && opt_.method != GradientMethod::Pt)
     throw InputError("max_depth > 1 (path replay) needs method pt: NEE + MIS at every vertex");
 }
+
+// Per-thread dense gradient accumulators, kept across passes (no per-pass allocation).
+struct GradientEngine::Scratch : tbb::enumerable_thread_specific<GradientScratch> {
+  using tbb::enumerable_thread_specific<GradientScratch>::enumerable_thread_specific;
+};
+
+GradientEngine::~GradientEngine() = default;
 
 struct GradientEngine::PassResult {
   Image image;
@@ -183,14 +192,14 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
   res.image = Image(W, H, 3);
   std::mutex mergeMutex;
   // Stage 1 measures one path's squared parameter derivatives per pixel instead of summing them.
-  auto finishPath = [&](PathGradient& pg, int tile, uint64_t pixel) {
+  auto finishPath = [&](PathGradient& pg, GradientScratch& scratch, uint64_t pixel) {
     if (derivSq) {
       double sq = 0;
       for (const auto& e : pg.entries()) sq += double(e.second) * double(e.second);
       if (std::isfinite(sq)) (*derivSq)[size_t(pixel)] += float(sq);
       pg.clear();
     } else {
-      tiles[size_t(tile)].commit(pg);
+      scratch.commit(pg);
     }
   };
 
@@ -200,6 +209,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
     uint64_t nonFinite = 0;
     PathContext ctx{&rays, nullptr};
     PathGradient pathGrad;
+    GradientScratch& scratch = scratch_->local();
     for (int tile = range.begin(); tile < range.end(); ++tile) {
       int tx = tile % tilesX, ty = tile / tilesX;
       for (int y = ty * kTile; y < std::min(H, (ty + 1) * kTile); ++y)
@@ -231,7 +241,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
               acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
               if (!backprop) continue;
               pathReplayBackprop(scene_, params_, cam.eye, d, sampler, prs, v, pixelAdjoint, pathGrad, &rays);
-              finishPath(pathGrad, tile, pixel);
+              finishPath(pathGrad, scratch, pixel);
               continue;
             }
             CameraSample cs;
@@ -355,11 +365,12 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 Rgb g = pixelAdjoint * p.weight * p.bsdfValue * p.emissionPerUnit;
                 for (int c = 0; c < 3; ++c) pathGrad.add(uint32_t(lOff + c), g[c]);
               }
-              finishPath(pathGrad, tile, pixel);
+              finishPath(pathGrad, scratch, pixel);
             }
           }
           res.image.setRgb(x, y, Rgb(float(acc[0] / samples), float(acc[1] / samples), float(acc[2] / samples)));
         }
+      if (gradient) scratch.flush(tiles[size_t(tile)]);
     }
     std::lock_guard lock(mergeMutex);  // integer counters: order does not matter
     res.rays += rays;

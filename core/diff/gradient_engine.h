@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <map>
+#include <memory>
 #include <vector>
 
 #include "core/diff/loss.h"
@@ -93,6 +94,7 @@ class GradientEngine {
  public:
   // targets[v] is the image view v should reproduce (may be empty for views never requested).
   GradientEngine(Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options);
+  ~GradientEngine();
 
   // Writes theta into the scene, then estimates the gradient at it.
   GradientResult evaluate(const std::vector<float>& theta, const GradientRequest& request, EngineSession& session);
@@ -113,6 +115,8 @@ class GradientEngine {
   const ParameterRegistry& params_;
   std::vector<Image> targets_;
   GradientOptions opt_;
+  struct Scratch;
+  std::unique_ptr<Scratch> scratch_;
 };
 
 // True if the surface point p is inside camera's frustum and not occluded from it.

@@ -1,7 +1,8 @@
 // Sparse gradient accumulation with a deterministic reduction. Each fixed block of work (a tile of
-// pixels) owns one TileGradient; paths add entries to a PathGradient that is committed to the tile
-// only if every entry is finite (non-finite paths are counted and dropped here, in one place).
-// Tiles are then reduced in tile order, so the sum does not depend on thread count or scheduling.
+// pixels) owns one TileGradient; paths add entries to a PathGradient that is committed (through
+// the working thread's GradientScratch) only if every entry is finite (non-finite paths are
+// counted and dropped here, in one place). Tiles are then reduced in tile order, so the sum does
+// not depend on thread count or scheduling.
 #pragma once
 
 #include <algorithm>
@@ -27,38 +28,61 @@ class PathGradient {
   std::vector<std::pair<uint32_t, float>> entries_;
 };
 
+// One tile's summed derivatives: (parameter index, sum) for each index its paths touched.
 class TileGradient {
  public:
-  // Appends the path's entries if all are finite; otherwise counts it as non-finite.
-  void commit(PathGradient& path) {
-    if (path.finite()) entries_.insert(entries_.end(), path.entries().begin(), path.entries().end());
-    else ++nonFinite_;
-    path.clear();
-    if (entries_.size() > (1u << 16)) compact();
-  }
-  // Sums duplicate indices (in insertion order, so the result is deterministic).
-  void compact() {
-    std::stable_sort(entries_.begin(), entries_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    merged_.clear();
-    for (const auto& e : entries_) {
-      if (!merged_.empty() && merged_.back().first == e.first) merged_.back().second += e.second;
-      else merged_.emplace_back(e.first, double(e.second));
-    }
-    // Keep the merged sums as the new entry list (as doubles folded back after the final add).
-    carried_.insert(carried_.end(), merged_.begin(), merged_.end());
-    entries_.clear();
-  }
   // Adds this tile into a dense gradient.
-  void reduceInto(std::vector<double>& dense) {
-    compact();
-    for (const auto& e : carried_) dense[e.first] += e.second;
-    carried_.clear();
+  void reduceInto(std::vector<double>& dense) const {
+    for (const auto& e : sums_) dense[e.first] += e.second;
   }
   uint64_t nonFinite() const { return nonFinite_; }
 
  private:
-  std::vector<std::pair<uint32_t, float>> entries_;
-  std::vector<std::pair<uint32_t, double>> merged_, carried_;
+  friend class GradientScratch;
+  std::vector<std::pair<uint32_t, double>> sums_;
+  uint64_t nonFinite_ = 0;
+};
+
+// A thread's dense accumulator for the tile it is working on: paths add into one double per
+// parameter (in the order they are committed, so each index's sum is the same for any thread
+// count), and flush() hands the touched sums to the tile. Dense rather than sorting a list of
+// entries per tile: a tile's paths touch few indices many times (bilinear texels).
+class GradientScratch {
+ public:
+  explicit GradientScratch(size_t parameters = 0) : sum_(parameters, 0.0), touched_(parameters, 0) {}
+  size_t parameters() const { return sum_.size(); }
+  // Adds the path's entries if all are finite; otherwise counts it as non-finite.
+  void commit(PathGradient& path) {
+    if (path.finite()) {
+      for (const auto& e : path.entries()) {
+        if (!touched_[e.first]) {
+          touched_[e.first] = 1;
+          order_.push_back(e.first);
+        }
+        sum_[e.first] += double(e.second);
+      }
+    } else {
+      ++nonFinite_;
+    }
+    path.clear();
+  }
+  // Moves what was committed since the last flush into `tile` and clears this scratch.
+  void flush(TileGradient& tile) {
+    tile.sums_.reserve(tile.sums_.size() + order_.size());
+    for (uint32_t i : order_) {
+      tile.sums_.emplace_back(i, sum_[i]);
+      sum_[i] = 0.0;
+      touched_[i] = 0;
+    }
+    order_.clear();
+    tile.nonFinite_ += nonFinite_;
+    nonFinite_ = 0;
+  }
+
+ private:
+  std::vector<double> sum_;
+  std::vector<uint8_t> touched_;
+  std::vector<uint32_t> order_;  // indices in first-touch order
   uint64_t nonFinite_ = 0;
 };
 
