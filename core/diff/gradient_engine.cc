@@ -86,7 +86,7 @@ bool emissionAlong(const Scene& scene, Vec3 o, Vec3 d, Rgb weight, CameraSample&
       float w = useMis ? powerHeuristic(misPdfBsdf, sel.pmf(li) * environmentPdf(l, d)) : 1.f;
       LightSampleRef ref;
       ref.light = li;
-      ref.direction = d;
+      ref.setDirection(d);
       cs.add(emissionPath(weight * w, Le, ref, l.kind == LightKind::ConstantEnvironment ? l.scale : 0.f));
       added = true;
     }
@@ -328,21 +328,20 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
                 cs.reservoir.deltaKnown = deltaKnown;
                 cs.reservoir.deltaVisible = deltaVisible;
                 cs.hasReservoir = true;
-                cs.reservoir.r = r;
+                cs.reservoir.r = StoredSample(r);
                 cs.reservoir.mesh = hit.mesh;
                 cs.reservoir.tri = hit.tri;
                 cs.reservoir.b1 = hit.b1;
                 cs.reservoir.b2 = hit.b2;
-                cs.reservoir.woWorld = -d;
-                cs.reservoir.view = uint32_t(view);
+                cs.reservoir.view = uint16_t(view);
                 cs.reservoir.p = hit.p;
-                cs.reservoir.n = hit.ns;
+                cs.reservoir.setNormal(hit.ns);
               }
             }
             if (store && sample < spp) {
               StoredReservoir& slot = store[size_t(pixel) * size_t(spp) + size_t(s)];
               slot = cs.reservoir;
-              if (!cs.hasReservoir) slot.r = Reservoir();  // misses and delta surfaces: empty (M = 0)
+              if (!cs.hasReservoir) slot.r = StoredSample();  // misses and delta surfaces: empty (M = 0)
               if (!cs.hasReservoir) slot.mesh = UINT32_MAX;
             }
             Rgb v = cs.value();
@@ -525,7 +524,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
       for (const auto& r : chain.items()) {
         bool seen = false;
         for (int v : req.views)
-          if (visibleFromCamera(scene_, scene_.cameras[size_t(v)], r.p, r.n)) { seen = true; break; }
+          if (visibleFromCamera(scene_, scene_.cameras[size_t(v)], r.p, r.n())) { seen = true; break; }
         if (!seen) {
           next.push_back(r);
           ++st.reservoirsPreserved;

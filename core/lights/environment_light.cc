@@ -48,7 +48,7 @@ LightSample environmentSampleAt(const Light& light, Vec3 w) {
   LightSample s;
   s.dist = std::numeric_limits<float>::infinity();
   s.wi = w;
-  s.ref.direction = w;
+  s.ref.setDirection(w);
   s.pdf = environmentPdf(light, w);
   s.pdfNative = s.pdf;
   s.radiance = environmentRadiance(light, w);

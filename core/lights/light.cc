@@ -28,7 +28,7 @@ LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 
     case LightKind::Area: s = areaLightSampleAt(light, scene, p, ref.tri, ref.b1, ref.b2); break;
     case LightKind::Point:
     case LightKind::Spot: s = samplePointOrSpot(light, p); break;
-    default: s = environmentSampleAt(light, ref.direction); break;
+    default: s = environmentSampleAt(light, ref.direction()); break;
   }
   s.ref = ref;
   return s;

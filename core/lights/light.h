@@ -2,6 +2,7 @@
 // (area_light.cc, point_light.cc, environment_light.cc).
 #pragma once
 
+#include <bit>
 #include <memory>
 #include <string>
 
@@ -16,12 +17,18 @@ class Scene;
 enum class LightKind { Area, Point, Spot, Environment, ConstantEnvironment };
 
 // Where a light sample lies, in a form that survives parameter changes: an area-light point is
-// (triangle, barycentrics), re-placed on the current mesh; an environment sample is a direction.
+// (triangle, barycentrics), re-placed on the current mesh; an environment sample is a direction,
+// kept bit for bit in the same three fields (16 bytes: stored reservoirs fit one cache line).
 struct LightSampleRef {
   uint32_t light = 0;
   uint32_t tri = 0;
   float b1 = 0.f, b2 = 0.f;
-  Vec3 direction;  // environments
+  Vec3 direction() const { return Vec3(std::bit_cast<float>(tri), b1, b2); }
+  void setDirection(Vec3 d) {
+    tri = std::bit_cast<uint32_t>(d.x);
+    b1 = d.y;
+    b2 = d.z;
+  }
 };
 
 // A direction towards a light from a reference point. For delta lights `pdf` is 1 and `radiance`

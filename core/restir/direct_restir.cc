@@ -5,13 +5,15 @@ namespace invr {
 namespace {
 
 // Target of light sample y at a stored reservoir's shading point, in the current scene (the
-// support test of Alg. 3, line 9). Uses that point's own view direction.
+// support test of Alg. 3, line 9). Uses that point's own view direction: towards the eye of the
+// camera that saw it (a primary hit lies on that camera's ray).
 float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRef& y, bool visibility, PathContext* ctx) {
   // visibility = false skips the shadow ray (used when V is already known to be 1).
   SurfaceHit h = scene.surfaceAt(q.mesh, q.tri, q.b1, q.b2);
   Bsdf b = scene.materials[size_t(scene.meshMaterial[h.mesh])].at(h.uv);
-  ShadingPoint sp{&h, &b, Frame(h.ns), Vec3(), q.woWorld};
-  sp.wo = sp.frame.toLocal(q.woWorld);
+  const Vec3 wo = normalize(scene.cameras[q.view].eye - h.p);
+  ShadingPoint sp{&h, &b, Frame(h.ns), Vec3(), wo};
+  sp.wo = sp.frame.toLocal(wo);
   LightSample ls = evalLightSample(scene, y, h.p);
   float t = risTarget(sp, ls);
   if (t > 0.f && visibility && traceShadow(scene, sp, ls, ctx)) t = 0.f;

@@ -115,7 +115,7 @@ void ReservoirStore::refresh(const Scene& scene) {
     for (auto& s : items_) {
       SurfaceHit h = scene.surfaceAt(s.mesh, s.tri, s.b1, s.b2);
       s.p = h.p;
-      s.n = h.ns;
+      s.setNormal(h.ns);
     }
     placedVersion_ = scene.geometryVersion();
     slotsComplete_ = false;  // moved points may now lie anywhere on screen
@@ -143,7 +143,7 @@ int ReservoirStore::neighbours(Vec3 p, Vec3 n, int k, float radius, float normal
   const float r2 = radius * radius;
   int count = 0;
   auto taken = [&](uint32_t i) { return std::find(out, out + count, i) != out + count; };
-  auto acceptable = [&](uint32_t i) { return i < items_.size() && dot(items_[i].n, n) >= normalDot && !taken(i); };
+  auto acceptable = [&](uint32_t i) { return i < items_.size() && dot(items_[i].n(), n) >= normalDot && !taken(i); };
   for (int h = 0; hints && h < hints->count; ++h) {
     uint32_t i = hints->items[h];
     if (acceptable(i) && lengthSquared(items_[i].p - p) <= r2) {

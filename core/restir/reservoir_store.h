@@ -5,6 +5,8 @@
 // searched instead (the same candidates, no tree to build).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -14,18 +16,38 @@
 
 namespace invr {
 
-struct StoredReservoir {
-  Reservoir r;
+// What reuse reads of a finished reservoir: its sample, unbiased contribution weight W and
+// confidence M (the running sum and target only matter while it is being built).
+struct StoredSample {
+  LightSampleRef y;
+  float W = 0.f;
+  float M = 0.f;
+  StoredSample() = default;
+  explicit StoredSample(const Reservoir& r) : y(r.y), W(r.W), M(r.M) {}
+};
+
+// One cache line per reservoir: the neighbour test, the combination and the support test of a
+// reuse each read one line (they are random reads into last step's buffer, mostly cache misses).
+struct alignas(64) StoredReservoir {
+  StoredSample r;
   uint32_t mesh = 0, tri = 0;
   float b1 = 0.f, b2 = 0.f;
-  Vec3 woWorld;    // towards the camera that created it (its BSDF target depends on it)
-  uint32_t view = 0;
+  Vec3 p;  // derived from the anchor by refresh()
+  // The shading normal (derived by refresh()), 16-bit fixed point: it only serves the normal
+  // similarity test and Alg. 8's ray offset.
+  int16_t nq[3] = {0, 0, 0};
+  // The view whose camera saw it: its BSDF target looks towards that camera's eye.
+  uint16_t view = 0;
   // Shadow rays from this point to delta lights 0..7 traced when it was created (bit i: light i
   // known, and visible). With unmoved geometry they still hold, so support tests need no new ray.
   uint8_t deltaKnown = 0, deltaVisible = 0;
-  // Derived from the anchor by refresh():
-  Vec3 p, n;
+
+  Vec3 n() const { return Vec3(float(nq[0]), float(nq[1]), float(nq[2])) * (1.f / 32767.f); }
+  void setNormal(Vec3 v) {
+    for (int c = 0; c < 3; ++c) nq[c] = int16_t(std::lround(std::clamp(v[c], -1.f, 1.f) * 32767.f));
+  }
 };
+static_assert(sizeof(StoredReservoir) == 64, "a stored reservoir should fill one cache line");
 
 // Which stored item each pixel sample of a pass produced: item[k * slotsPerView + slot] for the
 // k-th of `views` (UINT32_MAX: it stored none, e.g. a miss or a pixel outside the mini-batch).

@@ -292,6 +292,8 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
   }
 
   if (spec.views_size() == 0) fail(root + ".views", "at least one camera view is required");
+  // Stored ReSTIR reservoirs record their view in 16 bits.
+  if (spec.views_size() > 65535) fail(root + ".views", "at most 65535 camera views are supported");
   for (int i = 0; i < spec.views_size(); ++i) {
     const auto& c = spec.views(i);
     std::string field = root + ".views[" + std::to_string(i) + "]";

@@ -23,14 +23,14 @@ constexpr const char* kToyScene = R"({
   "views": [{"eye": {"y": 5}, "target": {}, "up": {"z": -1}}]
 })";
 
-// A stored reservoir anchored at a surface hit.
-StoredReservoir anchoredAt(const SurfaceHit& h, Vec3 wo = Vec3(0, 1, 0)) {
+// A stored reservoir anchored at a surface hit, seen by view 0 (the camera above the plane).
+StoredReservoir anchoredAt(const SurfaceHit& h) {
   StoredReservoir r;
   r.mesh = h.mesh;
   r.tri = h.tri;
   r.b1 = h.b1;
   r.b2 = h.b2;
-  r.woWorld = wo;
+  r.view = 0;
   return r;
 }
 
@@ -83,7 +83,7 @@ void runChains(float mCap, const char* label) {
       double v = sampleDirectRestir(*toy.scene, sp, sampler, s, &store, nullptr, p, combined) ? p.contribution().x : 0.0;
       perStep[size_t(t)].add(v);
       StoredReservoir next = anchoredAt(toy.hit);
-      next.r = combined;
+      next.r = StoredSample(combined);
       store.assign({next});
       if (t == steps - 1) meanM += combined.M / chains;
     }
@@ -112,7 +112,6 @@ TEST(Restir, WeightIsZeroWhenTargetIsZero) {
   StoredReservoir good = anchoredAt(toy.hit);
   good.r.M = 10;
   good.r.W = 1.f;
-  good.r.targetY = 1.f;
   good.r.y.light = 1;
   store.assign({good});
   store.refresh(*toy.scene);
@@ -183,7 +182,7 @@ TEST(Restir, NeighbourSearchHonoursRadiusNormalsAndHints) {
     for (int i = 0; i < 40; ++i) {
       StoredReservoir r = anchoredAt(toy.hit);
       r.p = Vec3(0.01f * (float(i) + jitter.next1D()), 0.f, 0.01f * (float(j) + jitter.next1D()));
-      r.n = (items.size() % 7 == 3) ? Vec3(0, -1, 0) : Vec3(0, 1, 0);
+      r.setNormal((items.size() % 7 == 3) ? Vec3(0, -1, 0) : Vec3(0, 1, 0));
       items.push_back(r);
     }
   PixelSlots slots;
@@ -207,7 +206,7 @@ TEST(Restir, NeighbourSearchHonoursRadiusNormalsAndHints) {
     withFour += n == 4;
     for (int a = 0; a < n; ++a) {
       EXPECT_LE(length(items[out[a]].p - p), radius);
-      EXPECT_GT(dot(items[out[a]].n, up), 0.9f);
+      EXPECT_GT(dot(items[out[a]].n(), up), 0.9f);
       for (int b = 0; b < a; ++b) EXPECT_NE(out[a], out[b]);
     }
   }
@@ -219,7 +218,7 @@ TEST(Restir, NeighbourSearchHonoursRadiusNormalsAndHints) {
   float best = 0.f;
   for (uint32_t i = 0; i < items.size(); ++i) {
     float d = length(items[i].p - q);
-    if (items[i].n.y > 0.f && d < radius && d > best) best = d, pred = i;  // the farthest acceptable one
+    if (items[i].n().y > 0.f && d < radius && d > best) best = d, pred = i;  // the farthest acceptable one
   }
   ASSERT_NE(pred, UINT32_MAX);
   NeighbourHints hints;
@@ -256,7 +255,7 @@ TEST(Restir, NeighbourSearchHonoursRadiusNormalsAndHints) {
     uint32_t nearest = UINT32_MAX;
     float nearestD = radius * radius;
     for (uint32_t i = 0; i < items.size(); ++i)
-      if (items[i].n.y > 0.9f && lengthSquared(items[i].p - p) <= nearestD) nearestD = lengthSquared(items[i].p - p), nearest = i;
+      if (items[i].n().y > 0.9f && lengthSquared(items[i].p - p) <= nearestD) nearestD = lengthSquared(items[i].p - p), nearest = i;
     ASSERT_EQ(store.neighbours(p, up, 1, radius, 0.9f, out, &window), 1);
     EXPECT_EQ(out[0], nearest);
   }
