@@ -123,6 +123,11 @@ TEST(SceneBuilder, ReferencesAndValuesAreChecked) {
       "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": []})"), "scene.views");
   EXPECT_MENTIONS(errorOf(R"({"materials": [{"name": "m", "diffuse": {}}],
       "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": [{"eye": {"z": 1}, "target": {"z": 1}}]})"), "scene.views[0].target");
+  // Stored reservoirs keep their view in 16 bits.
+  std::string views;
+  for (int i = 0; i < 65536; ++i) views += std::string(i ? "," : "") + R"({"eye": {"z": 3}, "target": {}})";
+  EXPECT_MENTIONS(errorOf(R"({"materials": [{"name": "m", "diffuse": {}}],
+      "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": [)" + views + "]}"), "at most 65535 camera views");
 }
 
 TEST(SceneBuilder, RenderSettingsDefaultsAndErrors) {
