@@ -5,6 +5,8 @@
 // forward renderer sums contributions; the gradient engine differentiates bsdfValue and emission.
 #pragma once
 
+#include <new>
+
 #include "core/math/rng.h"
 #include "core/render/render_options.h"
 #include "core/restir/reservoir.h"
@@ -96,46 +98,68 @@ inline DirectPath pathToLight(const ShadingPoint& sp, const LightSample& ls, Rgb
 // half is added by whoever traces the BSDF ray). False if the sample contributes nothing.
 bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out);
 
-// Shadow-ray results for delta lights from one shading point. A point or spot light is a single
-// sample, so RIS candidates that pick it again (and ReSTIR neighbours that carry it) need no new
-// ray: the answer is the same.
-class DeltaVisibility {
+// Delta lights as seen from one shading point. A point or spot light is a single sample whatever
+// the random numbers, so the RIS candidates that pick it again and the ReSTIR neighbours that
+// carry it all share one evaluation (sample, f |cos|, target) and one shadow ray.
+class DeltaLightCache {
  public:
-  // Occlusion of ls (a sample of light `light`) from sp, tracing only on the first ask per delta light.
-  bool occluded(const Scene& scene, const ShadingPoint& sp, const LightSample& ls, PathContext* ctx) {
-    if (!ls.delta) return traceShadow(scene, sp, ls, ctx);
+  struct Entry {
+    LightSample ls;
+    Rgb f;
+    float target;    // risTarget (may be non-finite: every use checks)
+    int8_t occluded;  // -1: no ray traced yet
+  };
+  DeltaLightCache() {}
+  DeltaLightCache(const DeltaLightCache&) = delete;
+  DeltaLightCache& operator=(const DeltaLightCache&) = delete;
+  ~DeltaLightCache() {
+    for (int i = 0; i < n_; ++i) entry(i).~Entry();
+  }
+
+  // The evaluation of delta light `light` (an index into scene.lights) at sp, computed on first
+  // use; null when every slot is taken (the caller evaluates it itself).
+  Entry* at(const Scene& scene, const ShadingPoint& sp, uint32_t light) {
     for (int i = 0; i < n_; ++i)
-      if (light_[i] == ls.ref.light) return occluded_[i];
-    bool o = traceShadow(scene, sp, ls, ctx);
-    if (n_ < kSlots) {
-      light_[n_] = ls.ref.light;
-      occluded_[n_++] = o;
-    }
-    return o;
+      if (light_[i] == light) return &entry(i);
+    if (n_ == kSlots) return nullptr;
+    light_[n_] = light;
+    Entry* e = new (&storage_[n_++]) Entry{sampleLight(scene.lights[light], scene, sp.hit->p, Vec2(0.f, 0.f), light), Rgb(0.f), 0.f, -1};
+    e->target = risTarget(sp, e->ls, &e->f);
+    return e;
+  }
+  // Whether e's light is occluded from sp, tracing its shadow ray on the first ask only.
+  static bool occluded(Entry& e, const Scene& scene, const ShadingPoint& sp, PathContext* ctx) {
+    if (e.occluded < 0) e.occluded = traceShadow(scene, sp, e.ls, ctx) ? 1 : 0;
+    return e.occluded > 0;
   }
   // What is known about delta lights 0..7 as bit masks (bit i: light i traced; light i visible).
-  void bits(uint8_t& known, uint8_t& visible) const {
+  void bits(uint8_t& known, uint8_t& visible) {
     known = visible = 0;
     for (int i = 0; i < n_; ++i)
-      if (light_[i] < 8) {
+      if (light_[i] < 8 && entry(i).occluded >= 0) {
         known |= uint8_t(1u << light_[i]);
-        if (!occluded_[i]) visible |= uint8_t(1u << light_[i]);
+        if (entry(i).occluded == 0) visible |= uint8_t(1u << light_[i]);
       }
   }
 
  private:
   static constexpr int kSlots = 8;
+  struct alignas(Entry) Slot {
+    unsigned char bytes[sizeof(Entry)];
+  };
+  Entry& entry(int i) { return *std::launder(reinterpret_cast<Entry*>(&storage_[i])); }
   uint32_t light_[kSlots];
-  bool occluded_[kSlots];
+  Slot storage_[kSlots];  // constructed on first use: most points see few delta lights
   int n_ = 0;
 };
 
 // Streaming RIS core (Alg. 1): the reservoir after M candidates, and the chosen sample's data.
 // A candidate with a non-finite target sets *nonFinite (the caller drops the whole sample).
-// `visibility` (optional) carries delta-light shadow rays to the caller's later tests at sp.
+// `deltas` (optional) carries the delta-light evaluations and shadow rays to the caller's later
+// uses at sp.
 Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
                     PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite = nullptr,
-                    DeltaVisibility* visibility = nullptr);
+                    DeltaLightCache* deltas = nullptr);
 
 // Baseline B.2: streaming RIS over M candidates drawn by the NEE strategy (Alg. 1). The target
 // includes visibility when visibilityInTarget (Eq. 14), else not (Eq. 17). `reservoir` receives

@@ -6,11 +6,13 @@ namespace invr {
 // nothing); the source density is pmf(light) * pdfNative and the target uses the same measure,
 // so w = p_hat / p_c is well defined for delta, area and environment lights alike.
 Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibilityInTarget,
-                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite, DeltaVisibility* visibility) {
-  DeltaVisibility local;
-  if (!visibility) visibility = &local;
+                    PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool* nonFinite, DeltaLightCache* deltas) {
+  DeltaLightCache local;
+  if (!deltas) deltas = &local;
   Reservoir r;
   if (scene.lights.empty()) return r;
+  LightSample fresh;  // the candidate, unless a delta light's cached evaluation stands for it
+  Rgb freshF(0.f);
   for (int m = 0; m < candidates; ++m) {
     float uSel = sampler.next1D();
     Vec2 u2(sampler.next1D(), sampler.next1D());
@@ -18,18 +20,26 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
     size_t li = scene.lightSelection().sample(uSel);
     float pmf = scene.lightSelection().pmf(li);
     if (!(pmf > 0.f)) { r.M += 1.f; continue; }
-    LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2, uint32_t(li));
-    Rgb f(0.f);
-    float target = risTarget(sp, ls, &f);
+    const Light& light = scene.lights[li];
+    DeltaLightCache::Entry* e = light.isDelta() ? deltas->at(scene, sp, uint32_t(li)) : nullptr;
+    float target;
+    if (e) {
+      target = e->target;
+    } else {
+      fresh = sampleLight(light, scene, sp.hit->p, u2, uint32_t(li));
+      target = risTarget(sp, fresh, &freshF);
+    }
+    const LightSample& ls = e ? e->ls : fresh;
     if (!std::isfinite(target)) {  // reported, not resampled: the caller drops the whole sample
       if (nonFinite) *nonFinite = true;
       target = 0.f;
     }
-    if (target > 0.f && visibilityInTarget && visibility->occluded(scene, sp, ls, ctx)) target = 0.f;
+    if (target > 0.f && visibilityInTarget && (e ? DeltaLightCache::occluded(*e, scene, sp, ctx) : traceShadow(scene, sp, ls, ctx)))
+      target = 0.f;
     double w = target > 0.f ? double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
     if (r.update(ls.ref, w, target, uPick)) {
       chosen = ls;
-      chosenF = f;
+      chosenF = e ? e->f : freshF;
     }
   }
   r.finalize(r.M);  // W = wSum / (M p_hat(y)); zero when no candidate had a positive target

@@ -38,8 +38,8 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   LightSample chosen;
   Rgb chosenF(0.f);
   bool poisoned = false;
-  DeltaVisibility visibleHere;  // delta lights' shadow rays from sp, shared with the neighbours' tests
-  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF, &poisoned, &visibleHere);
+  DeltaLightCache deltas;  // delta lights evaluated (and traced) from sp, shared with the neighbours
+  Reservoir fresh = streamRis(scene, sp, sampler, s.candidates, s.visibilityInTarget, ctx, chosen, chosenF, &poisoned, &deltas);
 
   constexpr int kMaxNeighbours = 32;
   uint32_t nb[kMaxNeighbours];
@@ -58,17 +58,26 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     nbM[i] = std::min(q.r.M, s.mCap);
     c.M += nbM[i];
     if (!(q.r.W > 0.f)) continue;
-    LightSample ls = evalLightSample(scene, q.r.y, sp.hit->p);
-    Rgb f(0.f);
-    float t = risTarget(sp, ls, &f);
+    DeltaLightCache::Entry* e = scene.lights[q.r.y.light].isDelta() ? deltas.at(scene, sp, q.r.y.light) : nullptr;
+    LightSample reused;
+    Rgb reusedF(0.f);
+    float t;
+    if (e) {
+      t = e->target;
+    } else {
+      reused = evalLightSample(scene, q.r.y, sp.hit->p);
+      t = risTarget(sp, reused, &reusedF);
+    }
     if (!std::isfinite(t)) {
       poisoned = true;
       t = 0.f;
     }
-    if (t > 0.f && s.visibilityInTarget && visibleHere.occluded(scene, sp, ls, ctx)) t = 0.f;
+    if (t > 0.f && s.visibilityInTarget &&
+        (e ? DeltaLightCache::occluded(*e, scene, sp, ctx) : traceShadow(scene, sp, reused, ctx)))
+      t = 0.f;
     if (c.stream(q.r.y, double(t) * double(q.r.W) * double(nbM[i]), t, u)) {
-      chosen = ls;
-      chosenF = f;
+      chosen = e ? e->ls : reused;
+      chosenF = e ? e->f : reusedF;
       chosenFrom = i;
     }
   }
@@ -98,7 +107,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     }
   }
   c.finalize(Z);
-  if (deltaKnown && deltaVisible) visibleHere.bits(*deltaKnown, *deltaVisible);
+  if (deltaKnown && deltaVisible) deltas.bits(*deltaKnown, *deltaVisible);
   if (poisoned) {  // counted and dropped by the caller; nothing non-finite is kept for reuse
     combined = Reservoir();
     if (counters) ++counters->shadingPoints;
