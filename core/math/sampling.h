@@ -69,6 +69,7 @@ class Distribution1D {
   std::vector<float> pmf_;
   std::vector<float> invPmf_;  // so the remap needs no division
   std::vector<double> cdf_;
+  std::vector<uint32_t> guide_;  // more than 8 cells: guide_[k] is the cell holding k / size
   double total_ = 0;
 };
 

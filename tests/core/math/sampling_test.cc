@@ -52,6 +52,51 @@ TEST(Distribution1D, PmfMatchesWeightsAndSamplingFrequencies) {
   }
 }
 
+// The cell a linear scan of the same cdf picks: cdf[i] <= u < cdf[i + 1], stepping back over
+// zero-probability cells (what sample() promises, whatever its lookup).
+size_t cellByScan(const std::vector<float>& w, float u) {
+  std::vector<double> cdf(w.size() + 1, 0.0);
+  for (size_t i = 0; i < w.size(); ++i) cdf[i + 1] = cdf[i] + std::max(0.f, w[i]);
+  const double norm = cdf.back();
+  for (size_t i = 0; i < w.size(); ++i) cdf[i] /= norm;
+  cdf.back() = 1.0;
+  size_t i = 0;
+  while (i + 1 < w.size() && cdf[i + 1] <= double(u)) ++i;
+  while (w[i] <= 0.f && i > 0) --i;
+  return i;
+}
+
+TEST(Distribution1D, LookupPicksTheCellHoldingU) {
+  // Small tables are scanned, larger ones use a guide table: both must agree with the scan,
+  // including at the cells' exact boundaries and around runs of empty cells.
+  for (size_t n : {3, 8, 9, 64, 1000}) {
+    std::vector<float> w(n);
+    for (size_t i = 0; i < n; ++i) w[i] = (i % 7 == 2 || i % 11 == 5) ? 0.f : float(1 + (i * i) % 13) * (i < n / 3 ? 20.f : 1.f);
+    Distribution1D d(w);
+    std::vector<float> us;
+    Sampler s(RngKey{11, n});
+    for (int k = 0; k < 4000; ++k) us.push_back(s.next1D());
+    double c = 0, total = 0;
+    for (float x : w) total += x;
+    for (float x : w) {  // near every boundary
+      c += x;
+      float b = float(c / total);
+      for (float v : {std::nextafter(b, 0.f), b, std::nextafter(b, 1.f)})
+        if (v >= 0.f && v < 1.f) us.push_back(v);
+    }
+    us.push_back(0.f);
+    us.push_back(0x1.fffffep-1f);
+    for (float u : us) {
+      float remapped = -1.f;
+      size_t got = d.sample(u, &remapped);
+      ASSERT_EQ(got, cellByScan(w, u)) << "n " << n << " u " << u;
+      EXPECT_GT(d.pmf(got), 0.f);
+      EXPECT_GE(remapped, 0.f);
+      EXPECT_LT(remapped, 1.f);
+    }
+  }
+}
+
 TEST(Distribution2D, PdfIntegratesToOneAndMatchesSampling) {
   const int w = 8, h = 4;
   std::vector<float> weights(w * h);
