@@ -16,22 +16,45 @@ Vec3 latLongToDirection(Vec2 uv) {
   return {st * std::sin(phi), std::cos(theta), -st * std::cos(phi)};
 }
 
-// Piecewise-constant lookup, the same density the sampler uses, so eval/pdf stay consistent.
-Rgb environmentRadiance(const Light& light, Vec3 w) {
-  if (light.kind == LightKind::ConstantEnvironment) return light.radiance * light.scale;
+namespace {
+
+// Piecewise-constant lookup at lat-long coordinates, the same cells the sampler uses, so eval and
+// pdf stay consistent.
+Rgb mapRadiance(const Light& light, Vec2 uv) {
   const Image& im = *light.envImage;
-  Vec2 uv = directionToLatLong(w);
   int x = std::min(int(uv.x * float(im.width())), im.width() - 1);
   int y = std::min(int(uv.y * float(im.height())), im.height() - 1);
   return im.rgb(x, y) * light.scale;
 }
 
-float environmentPdf(const Light& light, Vec3 w) {
-  if (light.kind == LightKind::ConstantEnvironment) return kUniformSpherePdf;
-  Vec2 uv = directionToLatLong(w);
+float mapPdf(const Light& light, Vec2 uv) {
   float sinTheta = std::sin(uv.y * kPi);
   if (sinTheta <= 0.f) return 0.f;
   return light.envDistribution.pdf(uv) / (2.f * kPi * kPi * sinTheta);
+}
+
+// A sample towards w whose lat-long coordinates are uv (= directionToLatLong(w)) and density pdf.
+LightSample mapSample(const Light& light, Vec3 w, Vec2 uv, float pdf) {
+  LightSample s;
+  s.dist = std::numeric_limits<float>::infinity();
+  s.wi = w;
+  s.ref.setDirection(w);
+  s.pdf = pdf;
+  s.pdfNative = pdf;
+  s.radiance = mapRadiance(light, uv);
+  return s;  // image maps are not parameters (yet): emissionPerUnit stays 0
+}
+
+}  // namespace
+
+Rgb environmentRadiance(const Light& light, Vec3 w) {
+  if (light.kind == LightKind::ConstantEnvironment) return light.radiance * light.scale;
+  return mapRadiance(light, directionToLatLong(w));
+}
+
+float environmentPdf(const Light& light, Vec3 w) {
+  if (light.kind == LightKind::ConstantEnvironment) return kUniformSpherePdf;
+  return mapPdf(light, directionToLatLong(w));
 }
 
 void buildEnvironmentDistribution(Light& light) {
@@ -45,15 +68,18 @@ void buildEnvironmentDistribution(Light& light) {
 }
 
 LightSample environmentSampleAt(const Light& light, Vec3 w) {
+  if (light.kind != LightKind::ConstantEnvironment) {
+    const Vec2 uv = directionToLatLong(w);  // once, for both the pdf and the radiance
+    return mapSample(light, w, uv, mapPdf(light, uv));
+  }
   LightSample s;
   s.dist = std::numeric_limits<float>::infinity();
   s.wi = w;
   s.ref.setDirection(w);
-  s.pdf = environmentPdf(light, w);
+  s.pdf = kUniformSpherePdf;
   s.pdfNative = s.pdf;
-  s.radiance = environmentRadiance(light, w);
-  // Only the constant environment's radiance is a parameter; image maps are not (yet).
-  s.emissionPerUnit = light.kind == LightKind::ConstantEnvironment ? light.scale : 0.f;
+  s.radiance = light.radiance * light.scale;
+  s.emissionPerUnit = light.scale;  // the constant environment's radiance is a parameter
   return s;
 }
 
@@ -67,10 +93,10 @@ LightSample sampleEnvironment(const Light& light, Vec2 u2) {
     s.dist = std::numeric_limits<float>::infinity();
     return s;
   }
-  LightSample s = environmentSampleAt(light, latLongToDirection(uv));
-  s.pdf = pdfUv / (2.f * kPi * kPi * sinTheta);  // exact for this cell (pdf() recomputes the same)
-  s.pdfNative = s.pdf;
-  return s;
+  const Vec3 w = latLongToDirection(uv);
+  // The density is exact for the sampled cell (pdf() recomputes the same); the radiance is looked
+  // up where every other evaluation at w looks it up.
+  return mapSample(light, w, directionToLatLong(w), pdfUv / (2.f * kPi * kPi * sinTheta));
 }
 
 }  // namespace invr
