@@ -44,7 +44,12 @@ struct alignas(64) StoredReservoir {
 
   Vec3 n() const { return Vec3(float(nq[0]), float(nq[1]), float(nq[2])) * (1.f / 32767.f); }
   void setNormal(Vec3 v) {
-    for (int c = 0; c < 3; ++c) nq[c] = int16_t(std::lround(std::clamp(v[c], -1.f, 1.f) * 32767.f));
+    // Rounds half away from zero, as lround does, without its libm call (6 % of ReSTIR's extra
+    // instructions over RIS on oxalis).
+    for (int c = 0; c < 3; ++c) {
+      float x = std::clamp(v[c], -1.f, 1.f) * 32767.f;
+      nq[c] = int16_t(x >= 0.f ? x + 0.5f : x - 0.5f);
+    }
   }
 };
 static_assert(sizeof(StoredReservoir) == 64, "a stored reservoir should fill one cache line");

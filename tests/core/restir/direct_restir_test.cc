@@ -264,5 +264,33 @@ TEST(Restir, NeighbourSearchHonoursRadiusNormalsAndHints) {
   EXPECT_TRUE(store.hasIndex());
 }
 
+// The stored normal's 16-bit fixed point rounds to the nearest step, halves away from zero (as
+// lround does), symmetrically for negative components, and clamps outside [-1, 1].
+TEST(Restir, StoredNormalQuantisesToTheNearestStep) {
+  StoredReservoir r;
+  const float step = 1.f / 32767.f;
+  r.setNormal(Vec3(1.f, -1.f, 0.f));
+  EXPECT_EQ(r.nq[0], 32767);
+  EXPECT_EQ(r.nq[1], -32767);
+  EXPECT_EQ(r.nq[2], 0);
+  r.setNormal(Vec3(1.5f, -2.f, 0.25f));  // 0.25 * 32767 = 8191.75
+  EXPECT_EQ(r.nq[0], 32767);
+  EXPECT_EQ(r.nq[1], -32767);
+  EXPECT_EQ(r.nq[2], 8192);
+  r.setNormal(Vec3(0.5f, -0.5f, -0.25f));  // 16383.5 exactly: a tie
+  EXPECT_EQ(r.nq[0], 16384);
+  EXPECT_EQ(r.nq[1], -16384);
+  EXPECT_EQ(r.nq[2], -8192);
+  Sampler rng(RngKey{5, 0, 0, 0, 0});
+  for (int i = 0; i < 1000; ++i) {
+    Vec3 n = normalize(Vec3(rng.next1D() - 0.5f, rng.next1D() - 0.5f, rng.next1D() - 0.5f));
+    r.setNormal(n);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(r.n()[c], n[c], 0.5f * step + 1e-7f);
+      EXPECT_EQ(r.nq[c], int16_t(std::lround(n[c] * 32767.f)));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace invr
