@@ -497,7 +497,7 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
 
   // Next step's reservoirs: this step's, plus the old ones no view of the batch could see (Alg. 8).
   t0 = std::chrono::steady_clock::now();
-  auto rebuild = [&](ReservoirStore& chain, std::vector<StoredReservoir>& fresh) {
+  auto rebuild = [&](ReservoirStore& chain, std::vector<StoredReservoir>& fresh, size_t& preserved, int& treeUsed) {
     // Compact out the empty slots, remembering where each pixel sample's reservoir went (the next
     // step tries it first, without a kd-tree search).
     std::vector<StoredReservoir> next = std::move(fresh);
@@ -521,22 +521,38 @@ GradientResult GradientEngine::evaluate(const std::vector<float>& theta, const G
     // visible still, so none would be kept: skip the visibility rays.
     bool allViews = (req.allSessionViews || req.views.size() == scene_.cameras.size()) && scene_.geometryVersion() == 0;
     if (opt_.preserveOccluded && !allViews) {
-      for (const auto& r : chain.items()) {
-        bool seen = false;
-        for (int v : req.views)
-          if (visibleFromCamera(scene_, scene_.cameras[size_t(v)], r.p, r.n())) { seen = true; break; }
-        if (!seen) {
-          next.push_back(r);
-          ++st.reservoirsPreserved;
+      // On unmoved geometry a reservoir is visible from the camera whose primary ray found it: no
+      // ray when that view is in the batch. The others trace one ray per view until one sees
+      // them, in parallel; the kept ones are appended in their old order (deterministic).
+      const std::vector<StoredReservoir>& old = chain.items();
+      const bool unmoved = scene_.geometryVersion() == 0;
+      std::vector<uint8_t> keep(old.size());
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, old.size(), 2048), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i < range.end(); ++i) {
+          const StoredReservoir& r = old[i];
+          bool seen = unmoved && std::find(req.views.begin(), req.views.end(), int(r.view)) != req.views.end();
+          for (size_t k = 0; !seen && k < req.views.size(); ++k)
+            seen = visibleFromCamera(scene_, scene_.cameras[size_t(req.views[k])], r.p, r.n());
+          keep[i] = !seen;
         }
-      }
+      });
+      for (size_t i = 0; i < old.size(); ++i)
+        if (keep[i]) {
+          next.push_back(old[i]);
+          ++preserved;
+        }
     }
     // Fresh items carry their hit's position; kept ones were re-placed by this step's refresh().
-    st.kdTreesBuilt += chain.hasIndex() ? 1 : 0;
+    treeUsed = chain.hasIndex() ? 1 : 0;
     chain.assignPlaced(std::move(next), scene_.geometryVersion(), std::move(slots));
   };
-  if (restir) rebuild(session.primal, newPrimal);
-  if (restirDerivative) rebuild(session.derivative, newDerivative);
+  // The two chains are independent: side by side.
+  size_t preserved[2] = {0, 0};
+  int treeUsed[2] = {0, 0};
+  tbb::parallel_invoke([&] { if (restir) rebuild(session.primal, newPrimal, preserved[0], treeUsed[0]); },
+                       [&] { if (restirDerivative) rebuild(session.derivative, newDerivative, preserved[1], treeUsed[1]); });
+  st.reservoirsPreserved += preserved[0] + preserved[1];
+  st.kdTreesBuilt += treeUsed[0] + treeUsed[1];
   st.secondsReservoirUpdate += secondsSince(t0);
   st.reservoirs = session.primal.size() + session.derivative.size();
   if (counters.shadingPoints) {
