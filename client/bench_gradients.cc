@@ -171,12 +171,10 @@ BenchReport benchGradients(const GradientsArgs& a) {
     rep.number("seconds_per_step_" + name, seconds[size_t(mi)], "s");
   }
   auto pm = [&](int i) { return BenchReport::fmt(relmse[size_t(i)]) + " +- " + BenchReport::fmt(relmseSe[size_t(i)]); };
-  rep.raw("relmse", "{\"pt\": " + BenchReport::fmt(relmse[0]) + ", \"ris\": " + BenchReport::fmt(relmse[1]) +
-                         ", \"restir\": " + BenchReport::fmt(relmse[2]) + "}",
-          "pt " + pm(0) + ", ris " + pm(1) + ", restir " + pm(2) + " (+- one standard error)");
-  rep.raw("relmse_standard_error", "{\"pt\": " + BenchReport::fmt(relmseSe[0]) + ", \"ris\": " + BenchReport::fmt(relmseSe[1]) +
-                         ", \"restir\": " + BenchReport::fmt(relmseSe[2]) + "}",
-          "pt " + BenchReport::fmt(relmseSe[0]) + ", ris " + BenchReport::fmt(relmseSe[1]) + ", restir " + BenchReport::fmt(relmseSe[2]));
+  rep.value("relmse", {{"pt", relmse[0]}, {"ris", relmse[1]}, {"restir", relmse[2]}},
+            "pt " + pm(0) + ", ris " + pm(1) + ", restir " + pm(2) + " (+- one standard error)");
+  rep.value("relmse_standard_error", {{"pt", relmseSe[0]}, {"ris", relmseSe[1]}, {"restir", relmseSe[2]}},
+            "pt " + BenchReport::fmt(relmseSe[0]) + ", ris " + BenchReport::fmt(relmseSe[1]) + ", restir " + BenchReport::fmt(relmseSe[2]));
   // Standard error of a ratio of independent means (delta method).
   auto ratioSe = [&](int i, int j) {
     double r = relmse[size_t(i)] / relmse[size_t(j)];
@@ -319,12 +317,13 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     rep.number("image_error_" + v.name, run.history.back().imageError);
     if (!run.failure.empty()) rep.text("failure_" + v.name, run.failure);
   }
-  std::string js = "{", shown;
+  BenchReport::Json paramError = BenchReport::Json::object();
+  std::string shown;
   for (size_t i = 0; i < variants.size(); ++i) {
-    js += std::string(i ? ", " : "") + "\"" + variants[i].name + "\": " + BenchReport::fmt(errors[i]);
+    paramError[variants[i].name] = errors[i];
     shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(errors[i]);
   }
-  rep.raw("param_error", js + "}", shown + " (RMSE of the parameters)");
+  rep.value("param_error", std::move(paramError), shown + " (RMSE of the parameters)");
   auto indexOf = [&](const std::string& n) {
     for (size_t i = 0; i < variants.size(); ++i)
       if (variants[i].name == n) return int(i);

@@ -129,17 +129,15 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   rep.number("defensive", a.defensive > 0 ? a.defensive : double(p.gradient.pixels.defensive));
   SamplerRun runs[3];
   const PixelSampler kinds[3] = {PixelSampler::Uniform, PixelSampler::LossGrad, PixelSampler::Adaptive};
-  std::string js = "{";
+  BenchReport::Json variance = BenchReport::Json::object(), varianceSe = BenchReport::Json::object();
   for (int i = 0; i < 3; ++i) {
     runs[i] = measure(p, targets, kinds[i], n, a.reps, a.defensive);
     std::cerr << pixelSamplerName(kinds[i]) << ": variance " << runs[i].variance << ", " << runs[i].seconds << " s\n";
-    js += std::string(i ? ", " : "") + "\"" + pixelSamplerName(kinds[i]) + "\": " + BenchReport::fmt(runs[i].variance);
+    variance[pixelSamplerName(kinds[i])] = runs[i].variance;
+    varianceSe[pixelSamplerName(kinds[i])] = runs[i].varianceSe;
   }
-  js += "}";
-  rep.raw("variance", js, js);
-  std::string se = "{";
-  for (int i = 0; i < 3; ++i) se += std::string(i ? ", " : "") + "\"" + pixelSamplerName(kinds[i]) + "\": " + BenchReport::fmt(runs[i].varianceSe);
-  rep.raw("variance_se", se + "}", se + "} (standard errors)");
+  rep.value("variance", variance, BenchReport::line(variance));
+  rep.value("variance_se", varianceSe, BenchReport::line(varianceSe) + " (standard errors)");
   rep.number("ratio_loss_grad_over_adaptive", runs[1].variance / runs[2].variance, "= " + ratioWithSe(runs[1], runs[2]) + " (target >= 3)");
   rep.number("ratio_uniform_over_adaptive", runs[0].variance / runs[2].variance, "= " + ratioWithSe(runs[0], runs[2]));
   rep.number("stage1_overhead_fraction", runs[2].stage1 / runs[2].seconds, "(target <= 0.10)");
@@ -149,12 +147,12 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
     auto refLossGrad = referenceMaps(p, targets, false, a.referenceSamples, a.defensive);
     SamplerRun ra = measure(p, targets, PixelSampler::Adaptive, n, a.reps, a.defensive, &refAdaptive);
     SamplerRun rl = measure(p, targets, PixelSampler::LossGrad, n, a.reps, a.defensive, &refLossGrad);
-    rep.raw("variance_reference_maps", "{\"loss_grad\": " + BenchReport::fmt(rl.variance) + ", \"adaptive\": " + BenchReport::fmt(ra.variance) + "}",
-            "loss_grad " + BenchReport::fmt(rl.variance) + ", adaptive " + BenchReport::fmt(ra.variance) + " (maps from many stage-1 passes)");
+    rep.value("variance_reference_maps", {{"loss_grad", rl.variance}, {"adaptive", ra.variance}},
+              "loss_grad " + BenchReport::fmt(rl.variance) + ", adaptive " + BenchReport::fmt(ra.variance) + " (maps from many stage-1 passes)");
     rep.number("reference_ratio_loss_grad_over_adaptive", rl.variance / ra.variance,
                "= " + ratioWithSe(rl, ra) + " (with maps from many stage-1 passes)");
-    rep.raw("variance_reference_maps_se", "{\"loss_grad\": " + BenchReport::fmt(rl.varianceSe) + ", \"adaptive\": " + BenchReport::fmt(ra.varianceSe) + "}",
-            "loss_grad " + BenchReport::fmt(rl.varianceSe) + ", adaptive " + BenchReport::fmt(ra.varianceSe) + " (standard errors)");
+    rep.value("variance_reference_maps_se", {{"loss_grad", rl.varianceSe}, {"adaptive", ra.varianceSe}},
+              "loss_grad " + BenchReport::fmt(rl.varianceSe) + ", adaptive " + BenchReport::fmt(ra.varianceSe) + " (standard errors)");
     rep.number("reference_ratio_uniform_over_adaptive", runs[0].variance / ra.variance, "= " + ratioWithSe(runs[0], ra));
     // What a perfect stage 1 would give the adaptive sampler against loss_grad as it runs: the
     // most the ratio above can reach by improving adaptive's maps alone.

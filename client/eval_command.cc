@@ -112,16 +112,9 @@ Suite makeSuite(bool quick) {
   return s;
 }
 
-std::string fmt(double v) { return BenchReport::fmt(v); }
+using Json = BenchReport::Json;
 
-std::string jsonQuote(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    o += static_cast<unsigned char>(c) < 0x20 ? ' ' : c;
-  }
-  return o + "\"";
-}
+std::string fmt(double v) { return BenchReport::fmt(v); }
 
 std::string firstLineOf(const std::string& file, const std::string& prefix) {
   std::ifstream in(file);
@@ -192,9 +185,15 @@ std::string shortName(const std::string& slot) {  // materials/mirror/roughness 
   return p == std::string::npos ? slot : slot.substr(p + 1);
 }
 
-std::string scalarValues(const ParameterSlot& s, const std::vector<float>& theta, const char* separator = " ") {
+std::string scalarValues(const ParameterSlot& s, const std::vector<float>& theta) {
   std::string o;
-  for (uint32_t k = 0; k < s.size; ++k) o += (k ? separator : "") + fmt(double(theta[s.offset + k]));
+  for (uint32_t k = 0; k < s.size; ++k) o += (k ? " " : "") + fmt(double(theta[s.offset + k]));
+  return o;
+}
+
+Json scalarValuesJson(const ParameterSlot& s, const std::vector<float>& theta) {
+  Json o = Json::array();
+  for (uint32_t k = 0; k < s.size; ++k) o.push_back(double(theta[s.offset + k]));
   return o;
 }
 
@@ -211,8 +210,8 @@ struct SceneResult {
   size_t parameters = 0;
   double initialParamError = 0, initialImageError = 0;
   std::vector<MethodResult> methods;
-  std::vector<std::pair<std::string, std::string>> truthScalars;  // slot, values
-  std::vector<std::vector<std::pair<std::string, std::string>>> methodScalars;
+  Json truthScalars = Json::object();  // slot: values
+  std::vector<Json> methodScalars;
 };
 
 double finalParamError(const MethodResult& m) { return m.run.history.back().parameterError; }
@@ -336,12 +335,12 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
   drawConvergenceChart({dir / "convergence.csv"}, dir / "image_error.png", "seconds", "image_error", title);
   drawSideBySide(dir, r, p, meter);
   for (const auto& s : p.params.slots())
-    if (s.width <= 0) r.truthScalars.push_back({s.name, scalarValues(s, p.truth, ", ")});
+    if (s.width <= 0) r.truthScalars[s.name] = scalarValuesJson(s, p.truth);
   for (const auto& m : r.methods) {
-    std::vector<std::pair<std::string, std::string>> v;
+    Json v = Json::object();
     for (const auto& s : p.params.slots())
-      if (s.width <= 0) v.push_back({s.name, scalarValues(s, m.run.theta, ", ")});
-    r.methodScalars.push_back(v);
+      if (s.width <= 0) v[s.name] = scalarValuesJson(s, m.run.theta);
+    r.methodScalars.push_back(std::move(v));
   }
   return r;
 }
@@ -355,45 +354,71 @@ const MethodResult* uniformPeer(const SceneResult& r, const MethodResult& m) {
   return nullptr;
 }
 
-std::string sceneJson(const SceneResult& r) {
+Json sceneJson(const SceneResult& r) {
   const MethodResult& base = r.methods.front();
-  std::string o = "{\"budget_seconds_per_method\": " + fmt(r.seconds) + ", \"parameters\": " + std::to_string(r.parameters) +
-                  ", \"baseline\": " + jsonQuote(base.name) + ", \"initial_param_error\": " + fmt(r.initialParamError) +
-                  ", \"initial_image_error\": " + fmt(r.initialImageError) + ", \"csv\": " + jsonQuote(r.scene + "/convergence.csv") +
-                  ", \"chart\": " + jsonQuote(r.scene + "/convergence.png") +
-                  ", \"image_error_chart\": " + jsonQuote(r.scene + "/image_error.png") +
-                  ", \"side_by_side\": " + jsonQuote(r.scene + "/side_by_side.png");
-  if (!r.truthScalars.empty()) {
-    o += ", \"truth\": {";
-    for (size_t i = 0; i < r.truthScalars.size(); ++i)
-      o += (i ? ", " : "") + jsonQuote(r.truthScalars[i].first) + ": [" + r.truthScalars[i].second + "]";
-    o += "}";
-  }
-  o += ", \"methods\": {";
+  Json o = {{"budget_seconds_per_method", r.seconds},
+            {"parameters", r.parameters},
+            {"baseline", base.name},
+            {"initial_param_error", r.initialParamError},
+            {"initial_image_error", r.initialImageError},
+            {"csv", r.scene + "/convergence.csv"},
+            {"chart", r.scene + "/convergence.png"},
+            {"image_error_chart", r.scene + "/image_error.png"},
+            {"side_by_side", r.scene + "/side_by_side.png"}};
+  if (!r.truthScalars.empty()) o["truth"] = r.truthScalars;
+  Json methods = Json::object();
   for (size_t i = 0; i < r.methods.size(); ++i) {
     const MethodResult& m = r.methods[i];
     const EqualTimePoint& last = m.run.history.back();
-    o += (i ? ", " : "") + jsonQuote(m.name) + ": {\"light_sampling\": " + jsonQuote(gradientMethodName(m.method.light)) +
-         ", \"pixel_sampling\": " + jsonQuote(pixelSamplerName(m.method.pixels)) + ", \"steps\": " + std::to_string(last.step) +
-         ", \"seconds\": " + fmt(last.seconds) + ", \"param_error\": " + fmt(last.parameterError) +
-         ", \"image_error\": " + fmt(last.imageError) + ", \"non_finite_samples\": " + std::to_string(m.run.nonFiniteSamples) +
-         ", \"stage1_seconds\": " + fmt(m.run.secondsStage1) +
-         (m.run.failure.empty() ? std::string() : ", \"failure\": " + jsonQuote(m.run.failure)) +
-         ", \"param_error_tail\": " + fmt(tailParamError(m, r.seconds)) +
-         ", \"param_error_ratio_vs_baseline\": " + fmt(finalParamError(base) / finalParamError(m)) +
-         ", \"param_error_tail_ratio_vs_baseline\": " + fmt(tailParamError(base, r.seconds) / tailParamError(m, r.seconds)) +
-         ", \"image_error_ratio_vs_baseline\": " + fmt(finalImageError(base) / finalImageError(m));
+    Json j = {{"light_sampling", gradientMethodName(m.method.light)},
+              {"pixel_sampling", pixelSamplerName(m.method.pixels)},
+              {"steps", last.step},
+              {"seconds", last.seconds},
+              {"param_error", last.parameterError},
+              {"image_error", last.imageError},
+              {"non_finite_samples", m.run.nonFiniteSamples},
+              {"stage1_seconds", m.run.secondsStage1}};
+    if (!m.run.failure.empty()) j["failure"] = m.run.failure;
+    j["param_error_tail"] = tailParamError(m, r.seconds);
+    j["param_error_ratio_vs_baseline"] = finalParamError(base) / finalParamError(m);
+    j["param_error_tail_ratio_vs_baseline"] = tailParamError(base, r.seconds) / tailParamError(m, r.seconds);
+    j["image_error_ratio_vs_baseline"] = finalImageError(base) / finalImageError(m);
     if (const MethodResult* u = uniformPeer(r, m))
-      o += ", \"param_error_tail_ratio_vs_uniform\": " + fmt(tailParamError(*u, r.seconds) / tailParamError(m, r.seconds));
-    if (!r.methodScalars[i].empty()) {
-      o += ", \"values\": {";
-      for (size_t k = 0; k < r.methodScalars[i].size(); ++k)
-        o += (k ? ", " : "") + jsonQuote(r.methodScalars[i][k].first) + ": [" + r.methodScalars[i][k].second + "]";
-      o += "}";
-    }
-    o += "}";
+      j["param_error_tail_ratio_vs_uniform"] = tailParamError(*u, r.seconds) / tailParamError(m, r.seconds);
+    if (!r.methodScalars[i].empty()) j["values"] = r.methodScalars[i];
+    methods[m.name] = std::move(j);
   }
-  return o + "}}";
+  o["methods"] = std::move(methods);
+  return o;
+}
+
+// summary.json's layout: the top level's figures on the first line; then each of its objects
+// and arrays on a line of its own, or, when their members are objects or arrays themselves, one
+// line per member.
+std::string summaryText(const Json& summary) {
+  auto isContainer = [](const Json& j) { return j.is_object() || j.is_array(); };
+  std::string o = "{";
+  bool first = true;
+  for (const auto& [key, value] : summary.items()) {
+    o += first ? "" : (isContainer(value) ? ",\n " : ", ");
+    first = false;
+    o += BenchReport::line(Json(key)) + ": ";
+    bool nested = !value.empty() && std::all_of(value.begin(), value.end(), isContainer);
+    if (!isContainer(value) || !nested) {
+      o += BenchReport::line(value);
+      continue;
+    }
+    bool object = value.is_object();
+    o += object ? "{" : "[";
+    bool firstMember = true;
+    for (const auto& [k, v] : value.items()) {
+      o += firstMember ? "\n  " : ",\n  ";
+      firstMember = false;
+      o += (object ? BenchReport::line(Json(k)) + ": " : "") + BenchReport::line(v);
+    }
+    o += object ? "}" : "]";
+  }
+  return o + "}\n";
 }
 
 std::string sceneMarkdown(const SceneResult& r) {
@@ -473,14 +498,18 @@ void runEval(const EvalArgs& a) {
   // summary.json
   std::ofstream js(out / "summary.json");
   if (!js) throw InputError("--out: cannot write '" + (out / "summary.json").string() + "'");
-  js << "{\"mode\": " << jsonQuote(a.quick ? "quick" : "full") << ", \"date\": " << jsonQuote(date) << ", \"budget_scale\": "
-     << fmt(a.budgetScale) << ", \"total_seconds\": " << fmt(total) << ",\n \"machine\": {\"cpu\": " << jsonQuote(m.cpu)
-     << ", \"cores\": " << m.cores << ", \"memory_gib\": " << fmt(m.memoryGiB) << ", \"os\": " << jsonQuote(m.os)
-     << ", \"kernel\": " << jsonQuote(m.kernel) << "},\n \"scenes\": {";
-  for (size_t i = 0; i < results.size(); ++i) js << (i ? ",\n  " : "\n  ") << jsonQuote(results[i].scene) << ": " << sceneJson(results[i]);
-  js << "},\n \"gradient_quality\": [";
-  for (size_t i = 0; i < tables.size(); ++i) js << (i ? ",\n  " : "\n  ") << tables[i].json();
-  js << "]}\n";
+  Json summary = {{"mode", a.quick ? "quick" : "full"},
+                  {"date", date},
+                  {"budget_scale", a.budgetScale},
+                  {"total_seconds", total},
+                  {"machine", {{"cpu", m.cpu}, {"cores", m.cores}, {"memory_gib", m.memoryGiB}, {"os", m.os}, {"kernel", m.kernel}}}};
+  Json scenes = Json::object();
+  for (const auto& r : results) scenes[r.scene] = sceneJson(r);
+  summary["scenes"] = std::move(scenes);
+  Json quality = Json::array();
+  for (const auto& t : tables) quality.push_back(t.toJson());
+  summary["gradient_quality"] = std::move(quality);
+  js << summaryText(summary);
   js.close();
   // summary.md: the same, for people (README links the committed full run's).
   std::ofstream md(out / "summary.md");

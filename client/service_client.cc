@@ -40,7 +40,10 @@ int exitCodeFor(v1::JobState s) {
   }
 }
 
-ServiceClient::ServiceClient(const std::string& address) : address_(address), stub_(v1::InvrService::NewStub(wire::channel(address))) {}
+ServiceClient::ServiceClient(const std::string& address)
+    : address_(address), channel_(wire::channel(address)) {
+  stub_ = v1::InvrService::NewStub(channel_);
+}
 
 std::string ServiceClient::upload(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
@@ -127,7 +130,7 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
                                                   const std::function<void(const v1::ProgressEvent&)>& onEvent,
                                                   const std::atomic<bool>& interrupted) {
   uint64_t next = from;
-  for (int breaks = 0;; ++breaks) {
+  for (;;) {
     grpc::ClientContext ctx;
     v1::WatchJobRequest req;
     req.set_job_id(job);
@@ -152,10 +155,25 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
     if (interrupted) return std::nullopt;
     if (final) return final;
     if (st.ok()) return get(job);  // watched from past the end: the job had already finished
-    // A broken stream: retry a few times (the server may be restarting), then report it.
-    if (breaks >= 20 || (st.error_code() != grpc::StatusCode::UNAVAILABLE && st.error_code() != grpc::StatusCode::CANCELLED))
+    if (st.error_code() != grpc::StatusCode::UNAVAILABLE && st.error_code() != grpc::StatusCode::CANCELLED)
       throwIfFailed(st, "watch " + job);
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    // A broken stream (the server may be restarting): wait for the channel to connect again,
+    // within the deadline, then resume from the last sequence seen.
+    auto deadline = std::chrono::system_clock::now() + std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                                                            std::chrono::duration<double>(reconnectSeconds_));
+    bool ready = false;
+    while (!interrupted && std::chrono::system_clock::now() < deadline) {
+      auto slice = std::min(deadline, std::chrono::system_clock::now() + std::chrono::milliseconds(200));
+      if (channel_->WaitForConnected(slice)) {
+        ready = true;
+        break;
+      }
+    }
+    if (interrupted) return std::nullopt;
+    if (!ready)
+      throw ExitError(exit_code::kServerUnavailable, "watch " + job + ": server unavailable for " + std::to_string(int(reconnectSeconds_)) +
+                                                         " s (" + st.error_message() + "); resume with: invr watch " + job +
+                                                         " --from " + std::to_string(next));
   }
 }
 

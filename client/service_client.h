@@ -31,8 +31,9 @@ class ServiceClient {
   bool waitForWorkers(int n, double timeoutSeconds);
 
   // Streams events from `fromSequence` until the job's final event; returns its status, or
-  // nullopt if `interrupted` became true first. Reconnects (resuming from the last sequence seen)
-  // if the stream breaks while the server is still reachable.
+  // nullopt if `interrupted` became true first. When the stream breaks (a server restart), waits
+  // up to reconnectSeconds() for the server to be reachable again and resumes from the last
+  // sequence seen; only then does it give up (server unavailable).
   std::optional<invr::v1::JobStatus> watch(const std::string& job, uint64_t fromSequence,
                                            const std::function<void(const invr::v1::ProgressEvent&)>& onEvent,
                                            const std::atomic<bool>& interrupted);
@@ -43,9 +44,13 @@ class ServiceClient {
   void fetchOne(const std::string& job, const std::string& name, const std::filesystem::path& dir);
 
   const std::string& address() const { return address_; }
+  double reconnectSeconds() const { return reconnectSeconds_; }
+  void setReconnectSeconds(double s) { reconnectSeconds_ = s; }
 
  private:
   std::string address_;
+  std::shared_ptr<grpc::Channel> channel_;
+  double reconnectSeconds_ = 60;
   std::unique_ptr<invr::v1::InvrService::Stub> stub_;
 };
 

@@ -21,6 +21,7 @@
 #include "client/job_argument.h"
 #include "client/progress.h"
 #include "client/service_client.h"
+#include "core/diff/memory_model.h"
 #include "core/diff/problem.h"
 #include "core/optim/figures.h"
 #include "core/restir/reservoir_store.h"
@@ -199,20 +200,11 @@ void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
   double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient);
   std::cout << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << paths / 1e6
             << " M camera paths per step\n";
-  // Memory of one worker holding the largest shard: geometry and BVH, textures, targets and
-  // renders, reservoir chains (two with restir) and gradient buffers.
-  double geometry = double(tris) * (3 * 12 + 12 + 4 * 3) * 2.5;  // vertices, face normals, indices; BVH ~1.5x
-  double texels = 0;
-  for (const auto& sl : p.params.slots()) texels += sl.width ? double(sl.size) * 4 : 0;
-  double images = double(maxShard) * double(pixels) * 12 * 3;
-  double reservoirs = 0;
-  if (g.method == GradientMethod::Restir)
-    reservoirs = double(maxShard) * double(pixels) * double(g.sppPrimal + (g.forwardOnly ? 0 : g.sppGradient)) *
-                 (sizeof(StoredReservoir) + 24) * 2;  // current and previous chain, kd-tree
-  double gradients = double(p.params.size()) * 8 * double(std::thread::hardware_concurrency() + 2);
-  double total = geometry + texels * 3 + images + reservoirs + gradients;
+  // Memory of one worker holding the largest shard (the model the service checks its budget with).
+  const WorkerMemory mem = estimateWorkerMemory(p, std::thread::hardware_concurrency());
   std::printf("memory per worker (largest shard): ~%.1f MiB (geometry %.1f, images %.1f, reservoirs %.1f, gradients %.1f)\n",
-              total / 1048576.0, geometry / 1048576.0, images / 1048576.0, reservoirs / 1048576.0, gradients / 1048576.0);
+              mem.total() / 1048576.0, mem.geometry / 1048576.0, mem.images / 1048576.0, mem.reservoirs / 1048576.0,
+              mem.gradients / 1048576.0);
 }
 
 // ------------------------------------------------------------------------------- embedded
@@ -339,6 +331,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     std::string id, server, out = "out/fetch";
     uint64_t from = 0;
     bool json = false;
+    double reconnect = 60;
   };
   auto w = std::make_shared<IdArgs>();
   auto* wc = app.add_subcommand("watch", "Stream a job's progress until it ends (Ctrl-C stops watching, not the job)");
@@ -346,9 +339,13 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   serverOpt(wc, w->server);
   wc->add_option("--from", w->from, "resume from this event sequence number");
   wc->add_flag("--json", w->json, "one JSON object per event");
+  wc->add_option("--reconnect-timeout", w->reconnect, "seconds to wait for the server to come back if the stream breaks (a restart)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   wc->callback([w, &exitCode] {
     interruptFlag();
     ServiceClient c(w->server);
+    c.setReconnectSeconds(w->reconnect);
     exitCode = watchToEnd(c, w->id, w->from, w->json, "the job goes on: invr watch " + w->id + " --server " + w->server);
   });
 

@@ -12,4 +12,7 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Thrown by long computations (renders, gradient evaluations) whose cancellation flag was raised.
+struct EvaluationCancelled {};
+
 }  // namespace invr

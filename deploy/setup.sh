@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package that invr's build, tests, demo and charts need.
+# Installs every Debian 12 package that invr's build, tests, demo and charts need (clang and its
+# runtime libraries for the fuzz targets of deploy/fuzz.sh: libFuzzer is in libclang-rt-14-dev).
 # Idempotent and non-interactive; run as root (or through sudo).
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
@@ -15,8 +16,9 @@ PACKAGES=(
   libgrpc++-dev protobuf-compiler-grpc
   libspdlog-dev libfmt-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev
+  libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev nlohmann-json3-dev
   python3 python3-grpcio python3-matplotlib
+  clang libclang-rt-14-dev
 )
 
 missing=()

@@ -14,7 +14,7 @@ int main(int argc, char** argv) {
   CLI::App app{"invr-server: accepts optimisation jobs and farms their gradient steps to invr-worker processes"};
   invr::server::ServerOptions o;
   std::string portFile;
-  double maxAssetMb = 1024;
+  double maxAssetMb = 1024, maxJobMb = 2048;
   app.add_option("--store", o.storeDir, "job and asset store folder (kept across restarts)")->capture_default_str();
   app.add_option("--address", o.address, "listen address; port 0 picks a free one")->capture_default_str();
   app.add_option("--port-file", portFile, "write the port listened on to this file");
@@ -24,8 +24,13 @@ int main(int argc, char** argv) {
   app.add_option("--max-attempts", o.maxAttempts, "attempts per shard and step before a job fails")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--assign-grace", o.assignGraceSeconds, "at a job's start, seconds to wait for one worker per shard")->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--max-asset-mb", maxAssetMb, "largest upload accepted")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-job-memory-mb", maxJobMb,
+                 "memory one job may take (textures, meshes, targets and per-worker state); larger jobs are refused (RESOURCE_EXHAUSTED)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
   o.maxAssetBytes = uint64_t(maxAssetMb * 1024 * 1024);
+  o.maxJobBytes = uint64_t(maxJobMb * 1024 * 1024);
   if (o.address.rfind("127.0.0.1:", 0) != 0 && o.address.rfind("localhost:", 0) != 0 && o.address.rfind("[::1]:", 0) != 0)
     spdlog::warn("listening on {}: not loopback, and the service has no authentication", o.address);
 

@@ -1,8 +1,14 @@
 #include "server/server.h"
 
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <spdlog/spdlog.h>
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -17,16 +23,20 @@
 #include <sstream>
 #include <thread>
 
+#include "core/diff/memory_model.h"
 #include "core/diff/problem.h"
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/io/job_io.h"
+#include "core/io/limits.h"
 #include "core/optim/figures.h"
 #include "core/optim/local_run.h"
 #include "core/optim/results_io.h"
 #include "invr/v1/service.grpc.pb.h"
 #include "server/asset_store.h"
 #include "server/job_store.h"
+#include "server/sha256.h"
+#include "server/task_check.h"
 #include "server/wire.h"
 
 namespace invr::server {
@@ -122,7 +132,13 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     WorkerStream* stream = nullptr;  // null once the stream ended
     bool leaving = false;
     Clock::time_point lastSeen;
+    // A worker whose lease expired gets no new lease until it proves alive: a heartbeat after the
+    // expiry that is not still busy with the expired task, or any result.
+    bool suspect = false;
+    uint64_t suspectTask = 0;
+    std::set<std::string> specsSent;  // spec hashes this connection has received
     bool alive() const { return stream != nullptr; }
+    bool eligible() const { return alive() && !leaving && !suspect; }
   };
 
   struct JobEntry {
@@ -142,12 +158,19 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     uint64_t worker = 0;
     Clock::time_point deadline;
     bool done = false;
+    bool sentSpec = false;  // the task carried the whole spec
+    v1::Task task;          // what was asked (without spec and theta): results are checked against it
+    ResultShape shape;
     v1::TaskResult result;
   };
 
   // One running job's scheduling state.
   struct Run {
     std::string id;
+    v1::JobSpec spec;
+    std::string specHash;
+    ResultShape shape;
+    std::vector<uint64_t> avoid;       // shard -> worker that last failed it (0: none)
     std::vector<uint64_t> assignment;  // shard -> worker (0: none); sticky
     std::vector<int> attempts;         // failed attempts of the current evaluation, per shard
     uint32_t rebuildBurnIn = 0;
@@ -175,6 +198,11 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
   std::deque<std::function<void()>> control;
   std::condition_variable controlCv;
   std::thread controlThread, runnerThread;
+
+  int storeLock = -1;  // flock on <store>/LOCK while this server runs
+  ~Impl() {
+    if (storeLock >= 0) ::close(storeLock);
+  }
 
   explicit Impl(ServerOptions o) : opt(std::move(o)), jobs(opt.storeDir / "jobs"), assets(opt.storeDir / "assets") {}
 
@@ -457,8 +485,12 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       if (w) return;
       WorkerEntry e;
       e.id = nextWorker++;
-      e.name = m.hello().name().empty() ? "worker-" + std::to_string(e.id) : m.hello().name();
-      e.capacity = std::max<uint32_t>(1, m.hello().capacity());
+      // A name is for logs and `invr workers`: bounded, printable.
+      std::string name = m.hello().name().substr(0, 128);
+      for (char& c : name)
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+      e.name = name.empty() ? "worker-" + std::to_string(e.id) : name;
+      e.capacity = std::clamp<uint32_t>(m.hello().capacity(), 1, 4096);
       e.stream = ws;
       e.lastSeen = Clock::now();
       workers[e.id] = e;
@@ -474,15 +506,32 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     if (m.has_leaving()) {
       w->leaving = true;
       spdlog::info("worker {} ({}) is leaving", w->id, w->name);
+    } else if (m.has_heartbeat()) {
+      if (w->suspect && m.heartbeat().busy_task() != w->suspectTask) {
+        w->suspect = false;
+        spdlog::info("worker {} ({}) is alive again after its lease expired", w->id, w->name);
+      }
     } else if (m.has_result()) {
+      if (w->suspect) {  // it finished (or gave up) the expired task: alive, and free
+        w->suspect = false;
+        spdlog::info("worker {} ({}) is alive again after its lease expired", w->id, w->name);
+      }
       auto it = leases.find(m.result().task_id());
       // Exactly once: only the current lease's worker can complete it, and only once.
       if (it == leases.end() || it->second.worker != w->id || it->second.done) {
         spdlog::debug("worker {}: stale result for task {} ignored", w->id, m.result().task_id());
         return;
       }
-      it->second.result = m.result();
-      it->second.done = true;
+      Lease& l = it->second;
+      std::string bad = checkTaskResult(l.task, m.result(), l.shape);
+      if (bad.empty()) {
+        l.result = m.result();
+      } else {  // the task fails (and is retried elsewhere); nothing of the result is used
+        spdlog::warn("worker {} ({}): malformed result for task {}: {}", w->id, w->name, l.taskId, bad);
+        l.result = v1::TaskResult();
+        l.result.set_error("malformed result (" + bad + ")");
+      }
+      l.done = true;
     }
     cv.notify_all();
   }
@@ -504,6 +553,15 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
   }
 
   // ------------------------------------------------------------------ jobs
+
+  // Threads of the largest connected worker (the machine's own when none is connected yet).
+  unsigned maxWorkerThreads() {
+    std::lock_guard<std::mutex> lk(mu);
+    unsigned n = 0;
+    for (auto& [id, w] : workers)
+      if (w.alive()) n = std::max(n, w.capacity);
+    return n ? n : std::max(1u, std::thread::hardware_concurrency());
+  }
 
   static grpc::Status notFound(const std::string& id) {
     return grpc::Status(grpc::StatusCode::NOT_FOUND, "no job '" + id + "'");
@@ -549,8 +607,9 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     }
   }
 
-  AssetResolver resolver() {
+  AssetResolver resolver(MemoryBudget* budget = nullptr) {
     AssetResolver r;
+    r.budget = budget;
     r.byHash = [this](const std::string& h) -> std::filesystem::path {
       if (!assets.has(h)) throw InputError("asset " + h + " was not uploaded");
       return assets.path(h);
@@ -577,10 +636,20 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     if (!spec.has_optimization() || spec.optimization().parameters_size() == 0)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters: a job needs at least one parameter to recover");
     try {
-      validateRenderSettings(spec.render());
-      buildProblem(spec, resolver());
+      validateJobSpec(spec);
+      // Every texture, mesh and target is charged to the job's budget before it is allocated;
+      // the problem is dropped again once validated.
+      MemoryBudget budget(opt.maxJobBytes);
+      Problem p = buildProblem(spec, resolver(&budget));
+      WorkerMemory mem = estimateWorkerMemory(p, maxWorkerThreads());
+      budget.charge(uint64_t(mem.images + mem.reservoirs + mem.gradients + mem.textures),
+                    "per-worker state (images, reservoirs, gradients of the largest shard, as `invr plan` estimates it)");
+    } catch (const ResourceError& e) {
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, e.what());
     } catch (const InputError& e) {
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+    } catch (const std::bad_alloc&) {
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "the job does not fit in the server's memory");
     } catch (const std::exception& e) {
       return grpc::Status(grpc::StatusCode::INTERNAL, e.what());
     }
@@ -660,20 +729,22 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
 
   // ------------------------------------------------------------------ scheduling
 
-  // A live worker for the shard: its sticky one if still there, else the least loaded.
+  // A live worker for the shard: its sticky one if still there, else the least loaded eligible
+  // one, preferring any worker but the one that last failed the shard.
   uint64_t pickWorkerLocked(Run& run, JobEntry& job, size_t shard) {
     uint64_t w = run.assignment[shard];
-    if (w && workers.count(w) && workers[w].alive()) return w;
-    if (w) {  // its worker vanished between steps
-      logEventLocked(job, "shard " + std::to_string(shard) + ": worker " + workers[w].name + " lost; reassigning");
+    if (w && workers.count(w) && workers[w].alive() && !workers[w].suspect) return w;
+    if (w) {  // its worker vanished (or stalled) between steps
+      logEventLocked(job, "shard " + std::to_string(shard) + ": worker " + workers[w].name +
+                              (workers[w].alive() ? " unresponsive" : " lost") + "; reassigning");
       run.assignment[shard] = 0;
     }
     uint64_t best = 0;
-    size_t bestLoad = SIZE_MAX;
+    std::pair<bool, size_t> bestKey{true, SIZE_MAX};  // (is the avoided worker, load)
     for (auto& [id, e] : workers) {
-      if (!e.alive() || e.leaving) continue;
-      size_t load = size_t(std::count(run.assignment.begin(), run.assignment.end(), id));
-      if (load < bestLoad) best = id, bestLoad = load;
+      if (!e.eligible()) continue;
+      std::pair<bool, size_t> key{id == run.avoid[shard], size_t(std::count(run.assignment.begin(), run.assignment.end(), id))};
+      if (!best || key < bestKey) best = id, bestKey = key;
     }
     if (best) {
       run.assignment[shard] = best;
@@ -708,6 +779,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     };
     auto retry = [&](size_t s, const std::string& why) {
       logEventLocked(job, "shard " + std::to_string(s) + ": " + why + "; reassigning");
+      if (leaseOf[s]) run.avoid[s] = leases[leaseOf[s]].worker;
       run.assignment[s] = 0;
       dropLease(s);
       if (++run.attempts[s] >= opt.maxAttempts)
@@ -723,7 +795,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         // connected workers gives late workers (starting up, reconnecting after a server
         // restart) a moment before the first assignment.
         bool unassigned = std::all_of(run.assignment.begin(), run.assignment.end(), [](uint64_t w) { return w == 0; });
-        size_t alive = size_t(std::count_if(workers.begin(), workers.end(), [](const auto& kv) { return kv.second.alive() && !kv.second.leaving; }));
+        size_t alive = size_t(std::count_if(workers.begin(), workers.end(), [](const auto& kv) { return kv.second.eligible(); }));
         bool settle = unassigned && alive > 0 && alive < run.assignment.size() &&
                       std::chrono::duration<double>(Clock::now() - run.started).count() < opt.assignGraceSeconds;
         for (size_t s = 0; s < n && !settle; ++s) {
@@ -738,18 +810,36 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           // Whenever a worker (re)builds the shard's session mid-job (new assignment, eviction,
           // restart) it refills the reservoirs with this many render-only steps first.
           t.set_rebuild_burn_in(run.rebuildBurnIn);
+          t.set_spec_sha256(run.specHash);
           Lease l;
           l.taskId = t.task_id();
           l.shard = s;
           l.worker = w;
           l.deadline = Clock::now() + std::chrono::milliseconds(int64_t(opt.leaseSeconds * 1000));
-          leases[l.taskId] = l;
-          leaseOf[s] = l.taskId;
+          // What the result is checked against (not θ: a texture's θ is megabytes).
+          l.task.set_task_id(t.task_id());
+          l.task.set_job_id(t.job_id());
+          l.task.set_kind(t.kind());
+          l.task.set_shard(t.shard());
+          *l.task.mutable_views() = t.views();
+          l.task.set_render_only(t.render_only());
+          l.shape = run.shape;
+          // The spec travels once per worker connection; later tasks name it by hash.
+          WorkerEntry& we = workers[w];
+          if (we.specsSent.insert(run.specHash).second) {
+            *t.mutable_spec() = run.spec;
+            l.sentSpec = true;
+          }
+          leases[l.taskId] = std::move(l);
+          leaseOf[s] = t.task_id();
           v1::ServerMessage m;
           *m.mutable_task() = std::move(t);
-          workers[w].stream->send(std::move(m));
+          we.stream->send(std::move(m));
         }
-        if (waiting && !run.announcedWaiting) logEventLocked(job, "waiting for a worker to connect");
+        if (waiting && !run.announcedWaiting) {
+          bool stalled = std::any_of(workers.begin(), workers.end(), [](const auto& kv) { return kv.second.alive() && kv.second.suspect; });
+          logEventLocked(job, stalled ? "waiting for an unresponsive worker to recover or another to connect" : "waiting for a worker to connect");
+        }
         run.announcedWaiting = waiting;
         bool all = true;
         for (size_t s = 0; s < n; ++s) {
@@ -760,8 +850,15 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           }
           Lease& l = leases[leaseOf[s]];
           const WorkerEntry& w = workers[l.worker];
+          if (l.done && l.result.spec_unknown() && !l.sentSpec) {
+            // The worker lost the spec (it reconnected or dropped it): send it again, no attempt lost.
+            workers[l.worker].specsSent.erase(run.specHash);
+            dropLease(s);
+            all = false;
+            continue;
+          }
           if (l.done) {
-            if (l.result.error().empty()) {
+            if (l.result.error().empty() && !l.result.spec_unknown()) {
               results[s] = std::move(l.result);
               dropLease(s);
               continue;
@@ -770,15 +867,21 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
             if (l.result.input_error()) {
               throw JobFailed{l.result.error()};
             } else {
-              retry(s, "worker " + w.name + " failed: " + l.result.error());
+              retry(s, "worker " + w.name + " failed: " +
+                           (l.result.spec_unknown() ? std::string("it did not take the job's spec") : l.result.error()));
             }
           } else if (!w.alive()) {
             all = false;
             retry(s, "worker " + w.name + " lost");
           } else {
             all = false;
-            if (Clock::now() > l.deadline)
-              retry(s, "lease on worker " + w.name + " expired after " + std::to_string(int(opt.leaseSeconds)) + " s");
+            if (Clock::now() > l.deadline) {
+              WorkerEntry& stalled = workers[l.worker];
+              stalled.suspect = true;
+              stalled.suspectTask = l.taskId;
+              retry(s, "lease on worker " + w.name + " expired after " + fmtSeconds(opt.leaseSeconds) +
+                           " (no new lease for it until it shows it is alive)");
+            }
           }
         }
         if (all) return results;
@@ -791,13 +894,19 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     }
   }
 
-  v1::Task baseTask(const Run& run, const v1::JobSpec& spec, size_t shard, const std::vector<float>& theta) {
+  // The spec is added per worker at dispatch (once per connection).
+  v1::Task baseTask(const Run& run, size_t shard, const std::vector<float>& theta) {
     v1::Task t;
     t.set_job_id(run.id);
     t.set_shard(uint32_t(shard));
-    *t.mutable_spec() = spec;
     t.mutable_theta()->Assign(theta.begin(), theta.end());
     return t;
+  }
+
+  static std::string fmtSeconds(double s) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g s", s);
+    return b;
   }
 
   void runnerLoop() {
@@ -834,7 +943,8 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     std::vector<std::string> csv;
     std::string method;
     try {
-      p = buildProblem(spec, resolver());
+      MemoryBudget budget(opt.maxJobBytes);
+      p = buildProblem(spec, resolver(&budget));
       method = gradientMethodName(p.gradient.method);
       auto saved = jobs.loadCheckpoint(id);
       haveCheckpoint = saved.has_value();
@@ -862,6 +972,23 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       if (theta.size() != p.params.size()) throw JobFailed{"checkpoint does not match the job's parameters"};
       Run run;
       run.id = id;
+      run.spec = spec;
+      {
+        std::string bytes;
+        {
+          google::protobuf::io::StringOutputStream raw(&bytes);
+          google::protobuf::io::CodedOutputStream coded(&raw);
+          coded.SetSerializationDeterministic(true);
+          spec.SerializeToCodedStream(&coded);
+        }
+        Sha256 h;
+        h.update(bytes.data(), bytes.size());
+        run.specHash = h.hex();
+      }
+      run.shape.parameters = p.params.size();
+      run.shape.width = p.scene->width;
+      run.shape.height = p.scene->height;
+      run.avoid.assign(p.shards.size(), 0);
       run.assignment.assign(p.shards.size(), 0);
       run.attempts.assign(p.shards.size(), 0);
       // A worker that takes over a shard mid-job rebuilds its reservoirs with render-only steps.
@@ -901,7 +1028,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         for (size_t s = 0; s < p.shards.size(); ++s) {
           GradientRequest r = shardRequest(p, e, s);
           if (r.views.empty()) continue;
-          v1::Task t = baseTask(run, spec, s, theta);
+          v1::Task t = baseTask(run, s, theta);
           t.set_kind(v1::Task::GRADIENT);
           t.mutable_views()->Assign(r.views.begin(), r.views.end());
           t.set_batch_views(uint32_t(r.batchViews));
@@ -987,7 +1114,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, step, sp.loss(), sp.param_error(),
                      sp.steps_per_second());
       }
-      writeResults(run, p, spec, theta, csv);
+      writeResults(run, p, theta, csv);
       std::lock_guard<std::mutex> lk(mu);
       endJobLocked(jobTable.at(id), v1::SUCCEEDED);
     } catch (const JobCancelled&) {
@@ -1036,7 +1163,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     if (!ec) files.push_back("progress.jsonl");
   }
 
-  void writeResults(Run& run, Problem& p, const v1::JobSpec& spec, const std::vector<float>& theta, const std::vector<std::string>& csv) {
+  void writeResults(Run& run, Problem& p, const std::vector<float>& theta, const std::vector<std::string>& csv) {
     auto dir = jobs.resultsDir(run.id);
     std::filesystem::create_directories(dir);
     std::vector<std::string> files = writeParameters(dir, p.params, theta);
@@ -1066,7 +1193,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     logEvent(run.id, "rendering final images");
     std::vector<std::optional<v1::Task>> tasks(p.shards.size());
     for (size_t s = 0; s < p.shards.size(); ++s) {
-      v1::Task t = baseTask(run, spec, s, theta);
+      v1::Task t = baseTask(run, s, theta);
       t.set_kind(v1::Task::FINAL_RENDER);
       t.set_final_spp(opt.finalSpp);
       for (int v : p.shards[s])
@@ -1130,18 +1257,27 @@ Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(o
 Server::~Server() { shutdown(); }
 
 int Server::start() {
+  // One server per store: a second one would split clients between two views of the same jobs.
+  std::filesystem::create_directories(impl_->opt.storeDir);
+  impl_->storeLock = ::open((impl_->opt.storeDir / "LOCK").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (impl_->storeLock < 0 || ::flock(impl_->storeLock, LOCK_EX | LOCK_NB) != 0)
+    throw std::runtime_error("store '" + impl_->opt.storeDir.string() + "' is in use by another invr-server");
   impl_->load();
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder b;
   int port = 0;
+  // Exclusive bind: without this gRPC sets SO_REUSEPORT, and a second server on the same port
+  // would start and take half of the connections.
+  b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   b.AddListeningPort(impl_->opt.address, grpc::InsecureServerCredentials(), &port);
   b.SetMaxReceiveMessageSize(wire::kMaxMessageBytes);
   b.SetMaxSendMessageSize(wire::kMaxMessageBytes);
   b.RegisterService(static_cast<v1::InvrService::CallbackService*>(impl_.get()));
   b.RegisterService(static_cast<v1::WorkerService::CallbackService*>(impl_.get()));
   impl_->grpcServer = b.BuildAndStart();
-  if (!impl_->grpcServer || port == 0) throw std::runtime_error("cannot listen on " + impl_->opt.address);
+  if (!impl_->grpcServer || port == 0)
+    throw std::runtime_error("cannot listen on " + impl_->opt.address + " (address in use, perhaps by another invr-server, or not a local address)");
   impl_->controlThread = std::thread([this] { impl_->controlLoop(); });
   impl_->runnerThread = std::thread([this] { impl_->runnerLoop(); });
   spdlog::info("invr-server listening on port {} (store {})", port, impl_->opt.storeDir.string());

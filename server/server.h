@@ -23,6 +23,9 @@ struct ServerOptions {
   int maxAttempts = 3;                   // per shard and step, before the job fails
   double assignGraceSeconds = 3;         // at a job's start, wait this long for one worker per shard
   uint64_t maxAssetBytes = uint64_t(1) << 30;
+  // Memory one job may take: its textures, meshes and targets as the server validates them, plus
+  // the per-worker state of `invr plan`'s model. Beyond it: RESOURCE_EXHAUSTED at submission.
+  uint64_t maxJobBytes = uint64_t(2) << 30;
   int finalSpp = 64;                     // final renders written with the results
   int finalViews = 4;                    // ... for the first this many views
 };

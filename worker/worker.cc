@@ -4,6 +4,7 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <deque>
@@ -76,6 +77,8 @@ class Worker {
       // The server went away (or never answered): sessions may belong to a server that no longer
       // exists, so drop them; a reassigned shard is rebuilt with a burn-in.
       sessions_.clear();
+      specs_.clear();
+      specOfJob_.clear();
       std::this_thread::sleep_for(std::chrono::duration<double>(backoff));
       backoff = std::min(backoff * 2, 2.0);
     }
@@ -122,7 +125,13 @@ class Worker {
           continue;
         }
         // A job that ended (or was cancelled) stops its task in hand.
-        if (m.has_release_job() && busy.load() && busyJob == m.release_job()) cancel_ = true;
+        if (m.has_release_job()) {
+          if (busy.load() && busyJob == m.release_job()) cancel_ = true;
+          // Tasks of the ended job still waiting here are dropped too.
+          inbox.erase(std::remove_if(inbox.begin(), inbox.end(),
+                                     [&](const v1::ServerMessage& q) { return q.has_task() && q.task().job_id() == m.release_job(); }),
+                      inbox.end());
+        }
         inbox.push_back(m);
         cv.notify_all();
       }
@@ -187,6 +196,22 @@ class Worker {
   void release(const std::string& job) {
     for (auto it = sessions_.begin(); it != sessions_.end();)
       it = it->first.first == job ? sessions_.erase(it) : std::next(it);
+    auto h = specOfJob_.find(job);
+    if (h != specOfJob_.end()) {
+      specs_.erase(h->second);
+      specOfJob_.erase(h);
+    }
+  }
+
+  // The task's job spec: sent whole with a job's first task on this connection, by hash after.
+  // Null when the worker does not hold it (the server then sends it again).
+  const v1::JobSpec* specFor(const v1::Task& t) {
+    if (t.has_spec()) {
+      specOfJob_[t.job_id()] = t.spec_sha256();
+      return &(specs_[t.spec_sha256()] = t.spec());
+    }
+    auto it = specs_.find(t.spec_sha256());
+    return it == specs_.end() ? nullptr : &it->second;
   }
 
   AssetResolver resolver() {
@@ -221,7 +246,7 @@ class Worker {
     return path;
   }
 
-  Session& session(const v1::Task& t, v1::TaskResult& res) {
+  Session& session(const v1::Task& t, const v1::JobSpec& spec, v1::TaskResult& res) {
     auto key = std::make_pair(t.job_id(), t.shard());
     auto it = sessions_.find(key);
     if (it != sessions_.end()) {
@@ -230,13 +255,13 @@ class Worker {
     }
     auto t0 = Clock::now();
     Session s;
-    s.problem = std::make_unique<Problem>(buildProblem(t.spec(), resolver()));
+    s.problem = std::make_unique<Problem>(buildProblem(spec, resolver()));
     Problem& p = *s.problem;
     if (t.shard() >= p.shards.size()) throw InputError("task: shard " + std::to_string(t.shard()) + " out of range");
     s.targets.resize(p.scene->cameras.size());
     for (int v : p.shards[t.shard()]) {
       if (cancel_) throw EvaluationCancelled{};
-      s.targets[size_t(v)] = renderTarget(p, v);
+      s.targets[size_t(v)] = renderTarget(p, v, &cancel_);
     }
     s.engine = std::make_unique<GradientEngine>(*p.scene, p.params, s.targets, p.gradient);
     // Taking over a shard mid-job: rebuild the reservoirs with render-only steps at the current
@@ -277,14 +302,20 @@ class Worker {
     res.set_job_id(t.job_id());
     res.set_shard(t.shard());
     try {
-      Session& s = session(t, res);
+      const v1::JobSpec* spec = specFor(t);
+      if (!spec) {
+        res.set_spec_unknown(true);
+        return out;
+      }
+      Session& s = session(t, *spec, res);
       Problem& p = *s.problem;
       std::vector<float> theta(t.theta().begin(), t.theta().end());
       if (theta.size() != p.params.size()) throw InputError("task: theta has " + std::to_string(theta.size()) + " values, the job " + std::to_string(p.params.size()));
       if (t.kind() == v1::Task::FINAL_RENDER) {
         p.params.write(theta, *p.scene);
-        RenderOptions ro = renderOptionsFrom(t.spec().render());
+        RenderOptions ro = renderOptionsFrom(spec->render());
         ro.spp = std::max(1, t.final_spp());
+        ro.cancel = &cancel_;
         for (int v : t.views()) toProto(renderView(*p.scene, v, ro).image, res.add_renders());
         for (int v : t.views()) toProto(s.targets.at(size_t(v)), res.add_renders());
         return out;
@@ -325,6 +356,8 @@ class Worker {
   WorkerOptions opt_;
   const std::atomic<bool>& stop_;
   std::map<std::pair<std::string, uint32_t>, Session> sessions_;
+  std::map<std::string, v1::JobSpec> specs_;        // by spec hash
+  std::map<std::string, std::string> specOfJob_;    // job id -> spec hash
   uint64_t useClock_ = 0;
   std::atomic<bool> cancel_{false};
   double memoryLimitMb_ = 0;

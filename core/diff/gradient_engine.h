@@ -63,7 +63,6 @@ struct GradientRequest {
   const std::atomic<bool>* cancel = nullptr;
 };
 
-struct EvaluationCancelled {};
 
 struct GradientStats {
   double loss = 0.0;

@@ -127,9 +127,10 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
       std::string field = "optimization.targets[" + std::to_string(v) + "]";
       Image im;
       try {
-        im = readImage(assets.resolve(o.targets(v), field));
+        im = readImage(assets.resolve(o.targets(v), field), true, assets.budget);
       } catch (const InputError& e) {
-        throw InputError(std::string(e.what()).rfind(field, 0) == 0 ? e.what() : field + ": " + e.what());
+        if (std::string(e.what()).rfind(field, 0) == 0) throw;
+        rethrowWithMessage(e, field + ": " + e.what());
       }
       if (im.width() != p.scene->width || im.height() != p.scene->height)
         fail("targets[" + std::to_string(v) + "]", "is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) +
@@ -165,10 +166,12 @@ RenderOptions targetRenderOptions(const Problem& p) {
   return ro;
 }
 
-Image renderTarget(Problem& p, int view) {
+Image renderTarget(Problem& p, int view, const std::atomic<bool>* cancel) {
   if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
   p.params.write(p.truth, *p.scene);
-  return renderView(*p.scene, view, targetRenderOptions(p)).image;
+  RenderOptions ro = targetRenderOptions(p);
+  ro.cancel = cancel;
+  return renderView(*p.scene, view, ro).image;
 }
 
 std::vector<Image> renderTargets(Problem& p) {

@@ -13,6 +13,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/io/limits.h"
 
 namespace invr {
 
@@ -23,25 +24,41 @@ float linearToSrgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
 }
 
-Image readImage(const std::filesystem::path& path, bool srgbToLinearConv) {
-  if (!std::filesystem::exists(path)) throw InputError("image '" + path.string() + "': file not found");
+Image readImage(const std::filesystem::path& path, bool srgbToLinearConv, MemoryBudget* budget) {
+  const std::string name = "image '" + path.string() + "'";
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(name + ": file not found");
+  const InputLimits& lim = inputLimits();
+  uint64_t fileBytes = std::filesystem::file_size(path, ec);
+  if (!ec && fileBytes > lim.maxFileBytes)
+    throw ResourceError(name + ": " + humanBytes(fileBytes) + " (limit " + humanBytes(lim.maxFileBytes) + ")");
   auto in = OIIO::ImageInput::open(path.string());
-  if (!in) throw InputError("image '" + path.string() + "': cannot read (" + OIIO::geterror() + ")");
+  if (!in) throw InputError(name + ": cannot read (" + OIIO::geterror() + ")");
   const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
-    throw InputError("image '" + path.string() + "': empty image");
+  // The header is all that has been read so far: check what it declares before allocating.
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) throw InputError(name + ": empty image");
+  if (spec.depth > 1) throw InputError(name + ": a 3-D image (depth " + std::to_string(spec.depth) + ") is not a texture");
+  if (spec.width > lim.maxImageSide || spec.height > lim.maxImageSide)
+    throw ResourceError(name + ": " + std::to_string(spec.width) + "x" + std::to_string(spec.height) + " pixels (limit " +
+                        std::to_string(lim.maxImageSide) + " per side)");
+  if (spec.nchannels > 64) throw InputError(name + ": " + std::to_string(spec.nchannels) + " channels (at most 64 are read)");
   int channels = std::min(spec.nchannels, 4);
+  const uint64_t pixels = uint64_t(spec.width) * uint64_t(spec.height);
+  if (budget) budget->charge(pixels * uint64_t(channels) * sizeof(float), name);
+  // The decode buffer holds every channel; it lives only during this call.
+  if (pixels * uint64_t(spec.nchannels) * sizeof(float) > (uint64_t(4) << 30))
+    throw ResourceError(name + ": decoding needs " + humanBytes(pixels * uint64_t(spec.nchannels) * sizeof(float)) + " (limit 4 GiB)");
   Image img(spec.width, spec.height, channels);
-  std::vector<float> all(size_t(spec.width) * spec.height * spec.nchannels);
+  std::vector<float> all(size_t(pixels) * size_t(spec.nchannels));
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
-    throw InputError("image '" + path.string() + "': decode failed (" + in->geterror() + ")");
+    throw InputError(name + ": decode failed (" + in->geterror() + ")");
   bool eightBit = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   bool linearize = srgbToLinearConv && eightBit && spec.get_string_attribute("oiio:ColorSpace") != "Linear";
-  for (size_t p = 0; p < size_t(spec.width) * spec.height; ++p) {
+  for (size_t p = 0; p < size_t(pixels); ++p) {
     for (int c = 0; c < channels; ++c) {
-      float v = all[p * spec.nchannels + c];
+      float v = all[p * size_t(spec.nchannels) + size_t(c)];
       if (linearize && c < 3) v = srgbToLinear(v);
-      img.data()[p * channels + c] = v;
+      img.data()[p * size_t(channels) + size_t(c)] = v;
     }
   }
   return img;
@@ -106,7 +123,11 @@ std::vector<ExrLayer> readExrLayers(const std::filesystem::path& path) {
   try {
     Imf::InputFile file(path.string().c_str());
     auto dw = file.header().dataWindow();
-    int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    int64_t w64 = int64_t(dw.max.x) - dw.min.x + 1, h64 = int64_t(dw.max.y) - dw.min.y + 1;
+    if (w64 <= 0 || h64 <= 0 || w64 > inputLimits().maxImageSide || h64 > inputLimits().maxImageSide)
+      throw ResourceError("exr '" + path.string() + "': data window " + std::to_string(w64) + "x" + std::to_string(h64) +
+                          " (limit " + std::to_string(inputLimits().maxImageSide) + " per side)");
+    int w = int(w64), h = int(h64);
     std::map<std::string, std::vector<std::string>> groups;  // ordered: deterministic layer order
     for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
       std::string full = it.name();
@@ -126,6 +147,8 @@ std::vector<ExrLayer> readExrLayers(const std::filesystem::path& path) {
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
     return layers;
+  } catch (const InputError&) {
+    throw;
   } catch (const std::exception& e) {
     throw InputError("exr '" + path.string() + "': " + e.what());
   }

@@ -40,8 +40,12 @@ class Image {
 
 // Reads any format OpenImageIO knows. 8-bit formats (PNG, JPEG) are converted from sRGB to
 // linear when `srgbToLinear` (true for colour textures, false for data such as roughness).
-// Throws InputError naming the file when it cannot be read.
-Image readImage(const std::filesystem::path& path, bool srgbToLinear = true);
+// Throws InputError naming the file when it cannot be read. The header's size is checked before
+// any pixel memory is allocated: sides beyond inputLimits().maxImageSide, more than 4 channels
+// kept of at most 64, 3-D images, or (with a budget) more bytes than the budget has left throw
+// ResourceError naming the file and the limit.
+class MemoryBudget;
+Image readImage(const std::filesystem::path& path, bool srgbToLinear = true, MemoryBudget* budget = nullptr);
 
 // Writes by extension: .exr (32-bit float), .hdr, .png (clamped, sRGB-encoded 8-bit).
 void writeImage(const std::filesystem::path& path, const Image& image);

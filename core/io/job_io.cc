@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/io/limits.h"
 
 namespace invr {
 
@@ -71,7 +72,7 @@ invr::v1::JobSpec parseJobJson(const std::string& json, const std::string& sourc
       text = m[1].str() + ": " + m[2].str();
     throw InputError(sourceName + (where.empty() ? "" : ":" + where) + ": " + text);
   }
-  if (job.has_render()) validateRenderSettings(job.render());
+  validateJobSpec(job);
   return job;
 }
 
@@ -104,6 +105,57 @@ void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string
 
 namespace {
 
+std::string fieldPath(const std::string& parent, const std::string& name) { return parent.empty() ? name : parent + "." + name; }
+
+// Everything protobuf's parsers accept but a job must not hold: enum numbers that name no value
+// (proto3 keeps them as open enums), oversized strings and repeated fields.
+void checkBounds(const google::protobuf::Message& m, const std::string& path) {
+  namespace pb = google::protobuf;
+  const InputLimits& lim = inputLimits();
+  const auto* desc = m.GetDescriptor();
+  const auto* refl = m.GetReflection();
+  auto checkEnum = [&](const pb::FieldDescriptor* f, int value, const std::string& at) {
+    if (f->enum_type()->FindValueByNumber(value)) return;
+    std::string known;
+    for (int k = 0; k < f->enum_type()->value_count(); ++k) {
+      if (f->enum_type()->value(k)->number() == 0) continue;  // the unspecified default
+      known += (known.empty() ? "" : ", ") + f->enum_type()->value(k)->name();
+    }
+    throw InputError(at + ": unknown value " + std::to_string(value) + " (use one of " + known + ")");
+  };
+  auto checkString = [&](const pb::FieldDescriptor* f, const std::string& v, const std::string& at) {
+    size_t limit = f->name() == "name" ? lim.maxNameBytes : lim.maxStringBytes;
+    if (v.size() > limit)
+      throw InputError(at + ": " + std::to_string(v.size()) + " bytes long (limit " + std::to_string(limit) + ")");
+  };
+  for (int i = 0; i < desc->field_count(); ++i) {
+    const auto* f = desc->field(i);
+    const std::string sub = fieldPath(path, f->name());
+    if (f->is_repeated()) {
+      int n = refl->FieldSize(m, f);
+      if (n > lim.maxRepeated)
+        throw InputError(sub + ": " + std::to_string(n) + " entries (limit " + std::to_string(lim.maxRepeated) + ")");
+      for (int k = 0; k < n; ++k) {
+        const std::string at = sub + "[" + std::to_string(k) + "]";
+        switch (f->cpp_type()) {
+          case pb::FieldDescriptor::CPPTYPE_MESSAGE: checkBounds(refl->GetRepeatedMessage(m, f, k), at); break;
+          case pb::FieldDescriptor::CPPTYPE_ENUM: checkEnum(f, refl->GetRepeatedEnumValue(m, f, k), at); break;
+          case pb::FieldDescriptor::CPPTYPE_STRING: checkString(f, refl->GetRepeatedString(m, f, k), at); break;
+          default: break;
+        }
+      }
+      continue;
+    }
+    if (f->has_presence() && !refl->HasField(m, f)) continue;
+    switch (f->cpp_type()) {
+      case pb::FieldDescriptor::CPPTYPE_MESSAGE: checkBounds(refl->GetMessage(m, f), sub); break;
+      case pb::FieldDescriptor::CPPTYPE_ENUM: checkEnum(f, refl->GetEnumValue(m, f), sub); break;
+      case pb::FieldDescriptor::CPPTYPE_STRING: checkString(f, refl->GetString(m, f), sub); break;
+      default: break;
+    }
+  }
+}
+
 void walkAssets(google::protobuf::Message& m, const std::string& path,
                 const std::function<void(v1::AssetRef&, const std::string&)>& fn) {
   if (auto* ref = dynamic_cast<v1::AssetRef*>(&m)) {
@@ -126,6 +178,11 @@ void walkAssets(google::protobuf::Message& m, const std::string& path,
 }
 
 }  // namespace
+
+void validateJobSpec(const v1::JobSpec& job) {
+  checkBounds(job, "");
+  if (job.has_render()) validateRenderSettings(job.render());
+}
 
 void forEachAssetRef(v1::JobSpec& job, const std::function<void(v1::AssetRef&, const std::string&)>& fn) {
   walkAssets(job, "", fn);

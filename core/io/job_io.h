@@ -15,6 +15,11 @@ invr::v1::JobSpec parseJobJson(const std::string& json, const std::string& sourc
 invr::v1::JobSpec loadJobFile(const std::filesystem::path& path);
 std::string jobToJson(const invr::v1::JobSpec& job);
 
+// Checks what protobuf's parser lets through: every enum value is a known one, every string and
+// repeated field within inputLimits(), then the render settings. parseJobJson calls it; the
+// server calls it on every submission. Throws InputError naming the field.
+void validateJobSpec(const invr::v1::JobSpec& job);
+
 // Checks the render settings (negative spp, absurd depths). Throws InputError naming the field.
 void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string& path = "render");
 

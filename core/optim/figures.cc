@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstring>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "core/error.h"
@@ -63,23 +64,6 @@ void runFiguresScript(const std::vector<std::string>& scriptArgs) {
   }
 }
 
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    if (c == '\n') {
-      o += "\\n";
-      continue;
-    }
-    if (static_cast<unsigned char>(c) < 0x20) {
-      o += ' ';
-      continue;
-    }
-    o += c;
-  }
-  return o + "\"";
-}
-
 }  // namespace
 
 void drawConvergenceChart(const std::vector<std::filesystem::path>& csvs, const std::filesystem::path& out, const std::string& x,
@@ -95,20 +79,18 @@ void drawConvergenceChart(const std::vector<std::filesystem::path>& csvs, const 
 void drawImageGrid(const std::string& title, const std::vector<std::string>& columns, const std::vector<GridRow>& rows,
                    const std::filesystem::path& out) {
   checkOutput(out);
-  std::string js = "{\"title\": " + jsonString(title) + ", \"columns\": [";
-  for (size_t i = 0; i < columns.size(); ++i) js += (i ? ", " : "") + jsonString(columns[i]);
-  js += "], \"rows\": [";
-  for (size_t r = 0; r < rows.size(); ++r) {
-    if (rows[r].cells.size() != columns.size()) throw std::logic_error("image grid: row '" + rows[r].label + "' has the wrong cell count");
-    js += std::string(r ? ", " : "") + "{\"label\": " + jsonString(rows[r].label) + ", \"cells\": [";
-    for (size_t c = 0; c < rows[r].cells.size(); ++c) {
-      const GridCell& cell = rows[r].cells[c];
-      js += std::string(c ? ", " : "") + "{\"image\": " + (cell.image.empty() ? "null" : jsonString(cell.image.string())) +
-            ", \"caption\": " + jsonString(cell.caption) + "}";
-    }
-    js += "]}";
+  nlohmann::ordered_json grid = {{"title", title}, {"columns", columns}, {"rows", nlohmann::ordered_json::array()}};
+  for (const GridRow& row : rows) {
+    if (row.cells.size() != columns.size()) throw std::logic_error("image grid: row '" + row.label + "' has the wrong cell count");
+    nlohmann::ordered_json cells = nlohmann::ordered_json::array();
+    for (const GridCell& cell : row.cells)
+      cells.push_back({{"image", cell.image.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(cell.image.string())},
+                       {"caption", cell.caption}});
+    grid["rows"].push_back({{"label", row.label}, {"cells", std::move(cells)}});
   }
-  js += "]}";
+  // ASCII only (non-ASCII escaped), so python reads it whatever its locale; bytes that are not
+  // UTF-8 become U+FFFD rather than an error.
+  const std::string js = grid.dump(-1, ' ', true, nlohmann::ordered_json::error_handler_t::replace);
   std::filesystem::path spec = out;
   spec += ".grid.json";
   {

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -10,6 +11,10 @@ namespace invr {
 
 void accumulateShard(GradientResult& total, const GradientResult& shard) {
   if (total.gradient.empty()) total.gradient.assign(shard.gradient.size(), 0.0);
+  // Callers check shapes first (the server checks every worker's result); this is the last line.
+  if (shard.gradient.size() != total.gradient.size())
+    throw std::logic_error("accumulateShard: a gradient of " + std::to_string(shard.gradient.size()) + " values added to one of " +
+                           std::to_string(total.gradient.size()));
   for (size_t i = 0; i < shard.gradient.size(); ++i) total.gradient[i] += shard.gradient[i];
   total.stats.loss += shard.stats.loss;
   total.stats.nonFiniteSamples += shard.stats.nonFiniteSamples;

@@ -1,22 +1,49 @@
 #include "core/optim/results_io.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "core/image/image.h"
 
 namespace invr {
 
+namespace {
+
+using Json = nlohmann::ordered_json;  // keys in the registry's order
+
+// One line with ", " and ": " separators. nlohmann writes the strings (escaped; bytes that are
+// not UTF-8 become U+FFFD) and integers; values with 6 significant digits, null if not finite.
+std::string oneLine(const Json& j) {
+  std::string o;
+  if (j.is_object()) {
+    for (const auto& [k, v] : j.items()) o += (o.empty() ? "" : ", ") + oneLine(Json(k)) + ": " + oneLine(v);
+    return "{" + o + "}";
+  }
+  if (j.is_array()) {
+    for (const auto& v : j) o += (o.empty() ? "" : ", ") + oneLine(v);
+    return "[" + o + "]";
+  }
+  if (j.is_number_float()) {
+    double v = j.get<double>();
+    if (!std::isfinite(v)) return "null";
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", v);
+    return buf;
+  }
+  return j.dump(-1, ' ', false, Json::error_handler_t::replace);
+}
+
+}  // namespace
+
 std::vector<std::string> writeParameters(const std::filesystem::path& dir, const ParameterRegistry& params,
                                          const std::vector<float>& theta) {
   std::vector<std::string> files{"parameters.json"};
-  std::ofstream js(dir / "parameters.json");
-  if (!js) throw InputError("cannot write '" + (dir / "parameters.json").string() + "'");
-  js << "{\n";
-  for (size_t i = 0; i < params.slots().size(); ++i) {
-    const ParameterSlot& s = params.slots()[i];
-    js << "  \"" << s.name << "\": ";
+  Json js = Json::object();
+  for (const ParameterSlot& s : params.slots()) {
     if (s.width > 0) {
       std::string file = s.name;
       std::replace(file.begin(), file.end(), '/', '_');
@@ -28,15 +55,23 @@ std::vector<std::string> writeParameters(const std::filesystem::path& dir, const
             im.at(x, y, c) = theta[s.offset + size_t((y * s.width + x) * s.channels + std::min(c, s.channels - 1))];
       writeImage(dir / file, im);
       files.push_back(file);
-      js << "{\"texture\": \"" << file << "\", \"width\": " << s.width << ", \"height\": " << s.height << "}";
+      js[s.name] = {{"texture", file}, {"width", s.width}, {"height", s.height}};
     } else {
-      js << "[";
-      for (uint32_t k = 0; k < s.size; ++k) js << (k ? ", " : "") << theta[s.offset + k];
-      js << "]";
+      Json values = Json::array();
+      for (uint32_t k = 0; k < s.size; ++k) values.push_back(double(theta[s.offset + k]));
+      js[s.name] = std::move(values);
     }
-    js << (i + 1 < params.slots().size() ? ",\n" : "\n");
   }
-  js << "}\n";
+  // One parameter per line.
+  std::string text = "{\n";
+  size_t i = 0;
+  for (const auto& [name, value] : js.items())
+    text += "  " + oneLine(Json(name)) + ": " + oneLine(value) + (++i < js.size() ? ",\n" : "\n");
+  text += "}\n";
+  std::ofstream out(dir / "parameters.json");
+  if (!out) throw InputError("cannot write '" + (dir / "parameters.json").string() + "'");
+  out << text;
+  if (!out.flush()) throw InputError("cannot write '" + (dir / "parameters.json").string() + "'");
   return files;
 }
 

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -20,6 +21,8 @@ struct RenderOptions {
   bool risVisibilityInTarget = false;
   int russianRouletteDepth = 3;
   uint64_t seed = 0;
+  // Checked once per pixel: when it becomes true, renderView throws EvaluationCancelled.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Rays traced, by purpose (for throughput figures).

@@ -33,12 +33,23 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
   std::atomic<size_t> pixelsDone{0};
   std::mutex progressMutex;
 
+  std::atomic<bool> cancelled{false};
   tbb::parallel_for(tbb::blocked_range2d<int>(0, H, kTile, 0, W, kTile), [&](const tbb::blocked_range2d<int>& r) {
+    if (cancelled.load(std::memory_order_relaxed) || (opt.cancel && opt.cancel->load(std::memory_order_relaxed))) {
+      cancelled = true;
+      return;
+    }
     RayStats& st = stats.local();
     uint64_t& bad = nonFinite.local();
     PathContext ctx{&st, recordRays ? &records.local() : nullptr};
     for (int y = r.rows().begin(); y < r.rows().end(); ++y)
       for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
+        // Per pixel: TBB hands out chunks far larger than a tile, and a pixel at high spp is
+        // already milliseconds of work.
+        if (opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
+          cancelled = true;
+          return;
+        }
         double acc[3] = {0, 0, 0};
         uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
         const uint64_t pixelHash = RngKey{opt.seed, 0, uint64_t(view), pixel, 0}.pixelHash();
@@ -57,6 +68,7 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
       progress(double(done) / (double(W) * double(H)));
     }
   });
+  if (cancelled) throw EvaluationCancelled{};
   stats.combine_each([&](const RayStats& s) { res.rays += s; });
   nonFinite.combine_each([&](uint64_t n) { res.nonFiniteSamples += n; });
   if (recordRays) records.combine_each([&](const std::vector<RayRecord>& v) { recordRays->insert(recordRays->end(), v.begin(), v.end()); });

@@ -3,6 +3,8 @@
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <array>
 #include <bit>
 #include <cstring>
@@ -12,6 +14,7 @@
 #include <unordered_map>
 
 #include "core/error.h"
+#include "core/io/limits.h"
 
 namespace invr {
 
@@ -169,29 +172,82 @@ TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tub
 
 namespace {
 
-TriangleMesh loadObj(const std::filesystem::path& path) {
+// tinyobjloader reads "nan" as 0 and "1e999" as infinity without a word: every number of a
+// v/vn/vt line is checked here first, with its line number.
+void checkObjNumbers(const std::string& bytes, const std::string& name) {
+  size_t line = 0;
+  for (size_t pos = 0; pos < bytes.size();) {
+    size_t end = bytes.find('\n', pos);
+    if (end == std::string::npos) end = bytes.size();
+    ++line;
+    const char* p = bytes.data() + pos;
+    const char* e = bytes.data() + end;
+    while (p < e && (*p == ' ' || *p == '\t')) ++p;
+    if (p < e && *p == 'v' && (p + 1 == e || p[1] == ' ' || p[1] == '\t' || ((p[1] == 'n' || p[1] == 't') && (p + 2 == e || p[2] == ' ' || p[2] == '\t')))) {
+      p += (p + 1 < e && (p[1] == 'n' || p[1] == 't')) ? 2 : 1;
+      for (;;) {
+        while (p < e && (*p == ' ' || *p == '\t' || *p == '\r')) ++p;
+        if (p >= e || *p == '#') break;
+        const char* tokEnd = p;
+        while (tokEnd < e && *tokEnd != ' ' && *tokEnd != '\t' && *tokEnd != '\r') ++tokEnd;
+        std::string tok(p, size_t(tokEnd - p));
+        char* stop = nullptr;
+        double v = std::strtod(tok.c_str(), &stop);
+        if (stop == tok.c_str() || *stop != '\0' || !std::isfinite(v) || std::abs(v) > 3.0e38)
+          throw InputError("mesh '" + name + "': line " + std::to_string(line) + ": '" + tok.substr(0, 32) + "' is not a finite number");
+        p = tokEnd;
+      }
+    }
+    pos = end + 1;
+  }
+}
+
+TriangleMesh parseObj(const std::string& bytes, const std::string& name) {
+  auto fail = [&](const std::string& why) { throw InputError("mesh '" + name + "': " + why); };
+  checkObjNumbers(bytes, name);
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = true;
+  cfg.vertex_color = false;
   tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path.string(), cfg))
-    throw InputError("mesh '" + path.string() + "': " + (reader.Error().empty() ? "cannot parse OBJ" : reader.Error()));
+  // Materials are not read: an OBJ names its .mtl by path, which means nothing for an asset.
+  if (!reader.ParseFromString(bytes, std::string(), cfg)) fail(reader.Error().empty() ? "cannot parse OBJ" : reader.Error());
   const auto& attrib = reader.GetAttrib();
+  const InputLimits& lim = inputLimits();
+  const size_t nv = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3, nt = attrib.texcoords.size() / 2;
+  if (nv > lim.maxMeshVertices)
+    throw ResourceError("mesh '" + name + "': " + std::to_string(nv) + " vertices (limit " + std::to_string(lim.maxMeshVertices) + ")");
   TriangleMesh m;
   std::map<std::tuple<int, int, int>, uint32_t> remap;
-  bool hasN = !attrib.normals.empty(), hasUv = !attrib.texcoords.empty();
+  bool hasN = nn > 0, hasUv = nt > 0;
+  size_t face = 0;
   for (const auto& shape : reader.GetShapes()) {
-    for (const auto& idx : shape.mesh.indices) {
+    if (m.indices.size() + shape.mesh.indices.size() > 3 * lim.maxMeshTriangles)
+      throw ResourceError("mesh '" + name + "': more than " + std::to_string(lim.maxMeshTriangles) + " triangles");
+    for (size_t k = 0; k < shape.mesh.indices.size(); ++k) {
+      const auto& idx = shape.mesh.indices[k];
+      if (k % 3 == 0) ++face;
+      // Every index is checked against its array: tinyobjloader resolves relative indices but
+      // does not range-check them.
+      if (idx.vertex_index < 0 || size_t(idx.vertex_index) >= nv)
+        fail("face " + std::to_string(face) + " references vertex " + std::to_string(idx.vertex_index + 1) + " of " + std::to_string(nv));
+      if (hasN) {
+        if (idx.normal_index < 0) fail("some faces have normals and some do not (face " + std::to_string(face) + ")");
+        if (size_t(idx.normal_index) >= nn)
+          fail("face " + std::to_string(face) + " references normal " + std::to_string(idx.normal_index + 1) + " of " + std::to_string(nn));
+      }
+      if (hasUv && idx.texcoord_index >= 0 && size_t(idx.texcoord_index) >= nt)
+        fail("face " + std::to_string(face) + " references texture coordinate " + std::to_string(idx.texcoord_index + 1) + " of " +
+             std::to_string(nt));
       auto key = std::make_tuple(idx.vertex_index, hasN ? idx.normal_index : -1, hasUv ? idx.texcoord_index : -1);
       auto [it, inserted] = remap.try_emplace(key, uint32_t(m.positions.size()));
       if (inserted) {
-        if (idx.vertex_index < 0 || size_t(3 * idx.vertex_index + 2) >= attrib.vertices.size())
-          throw InputError("mesh '" + path.string() + "': face references a missing vertex");
         const float* v = &attrib.vertices[3 * size_t(idx.vertex_index)];
         m.positions.push_back({v[0], v[1], v[2]});
         if (hasN) {
-          if (idx.normal_index < 0) throw InputError("mesh '" + path.string() + "': some faces have normals and some do not");
           const float* n = &attrib.normals[3 * size_t(idx.normal_index)];
-          m.normals.push_back(normalize(Vec3(n[0], n[1], n[2])));
+          Vec3 nv3(n[0], n[1], n[2]);
+          if (!isFinite(nv3)) fail("normal " + std::to_string(idx.normal_index + 1) + " is not finite");
+          m.normals.push_back(lengthSquared(nv3) > 0.f ? normalize(nv3) : Vec3(0.f, 0.f, 1.f));
         }
         if (hasUv) {
           Vec2 uv(0.f, 0.f);
@@ -205,40 +261,20 @@ TriangleMesh loadObj(const std::filesystem::path& path) {
   return m;
 }
 
-// Minimal PLY reader: vertex (x y z [nx ny nz] [u v | s t]) and face (vertex_indices list).
-TriangleMesh loadPly(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  auto fail = [&](const std::string& why) -> TriangleMesh { throw InputError("mesh '" + path.string() + "': " + why); };
+// PLY reader: vertex (x y z [nx ny nz] [u v | s t]) and face (vertex_indices list); other
+// elements are read and skipped. Counts the header declares are checked against the limits and
+// against the bytes the file holds before anything is reserved for them.
+TriangleMesh parsePly(const std::string& bytes, const std::string& name) {
+  std::istringstream in(bytes);
+  auto fail = [&](const std::string& why) -> TriangleMesh { throw InputError("mesh '" + name + "': " + why); };
+  const InputLimits& lim = inputLimits();
   std::string line;
   if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return fail("not a PLY file (missing 'ply' magic)");
   enum class Fmt { Ascii, BinLE, BinBE } fmt = Fmt::Ascii;
+  bool haveFormat = false;
   struct Prop { std::string name, type, countType; bool list = false; };
-  struct Element { std::string name; size_t count = 0; std::vector<Prop> props; };
+  struct Element { std::string name; uint64_t count = 0; std::vector<Prop> props; };
   std::vector<Element> elements;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ss(line);
-    std::string kw;
-    ss >> kw;
-    if (kw == "format") {
-      std::string f; ss >> f;
-      if (f == "ascii") fmt = Fmt::Ascii;
-      else if (f == "binary_little_endian") fmt = Fmt::BinLE;
-      else if (f == "binary_big_endian") fmt = Fmt::BinBE;
-      else return fail("unknown PLY format '" + f + "'");
-    } else if (kw == "element") {
-      Element e; ss >> e.name >> e.count; elements.push_back(e);
-    } else if (kw == "property") {
-      if (elements.empty()) return fail("property before any element");
-      Prop p; std::string t; ss >> t;
-      if (t == "list") { p.list = true; ss >> p.countType >> p.type >> p.name; }
-      else { p.type = t; ss >> p.name; }
-      elements.back().props.push_back(p);
-    } else if (kw == "end_header") {
-      break;
-    }
-  }
-  if (!in) return fail("truncated header");
   auto typeSize = [&](const std::string& t) -> size_t {
     if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
     if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
@@ -247,11 +283,84 @@ TriangleMesh loadPly(const std::filesystem::path& path) {
     fail("unknown property type '" + t + "'");
     return 0;
   };
-  auto readValue = [&](const std::string& t) -> double {
-    if (fmt == Fmt::Ascii) { double v; if (!(in >> v)) fail("truncated data"); return v; }
+  auto isIntegerType = [](const std::string& t) { return t != "float" && t != "float32" && t != "double" && t != "float64"; };
+  bool ended = false;
+  int headerLine = 1;
+  while (std::getline(in, line)) {
+    ++headerLine;
+    if (headerLine > 10000) return fail("header longer than 10000 lines");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ss(line);
+    std::string kw;
+    ss >> kw;
+    const std::string at = " (header line " + std::to_string(headerLine) + ")";
+    if (kw == "format") {
+      std::string f, version;
+      ss >> f >> version;
+      if (f == "ascii") fmt = Fmt::Ascii;
+      else if (f == "binary_little_endian") fmt = Fmt::BinLE;
+      else if (f == "binary_big_endian") fmt = Fmt::BinBE;
+      else return fail("unknown PLY format '" + f + "'" + at);
+      haveFormat = true;
+    } else if (kw == "element") {
+      Element e;
+      std::string count;
+      ss >> e.name >> count;
+      if (e.name.empty() || count.empty() || count.size() > 12 || !std::all_of(count.begin(), count.end(), ::isdigit))
+        return fail("element '" + e.name + "': count '" + count + "' is not a non-negative integer" + at);
+      e.count = std::stoull(count);
+      uint64_t limit = e.name == "face" ? lim.maxMeshTriangles : lim.maxMeshVertices;
+      if (e.count > limit)
+        throw ResourceError("mesh '" + name + "': element '" + e.name + "' declares " + count + " entries (limit " + std::to_string(limit) + ")");
+      elements.push_back(e);
+    } else if (kw == "property") {
+      if (elements.empty()) return fail("property before any element" + at);
+      Prop p;
+      std::string t;
+      ss >> t;
+      if (t == "list") {
+        p.list = true;
+        ss >> p.countType >> p.type >> p.name;
+        typeSize(p.countType);
+        if (!isIntegerType(p.countType)) return fail("list count type '" + p.countType + "' is not an integer type" + at);
+      } else {
+        p.type = t;
+        ss >> p.name;
+      }
+      typeSize(p.type);
+      if (p.name.empty()) return fail("property without a name" + at);
+      elements.back().props.push_back(p);
+    } else if (kw == "end_header") {
+      ended = true;
+      break;
+    } else if (kw != "comment" && kw != "obj_info" && !kw.empty()) {
+      return fail("unknown header keyword '" + kw + "'" + at);
+    }
+  }
+  if (!ended) return fail("truncated header (no end_header)");
+  if (!haveFormat) return fail("header has no 'format' line");
+  // Each entry takes at least this many bytes (an ASCII value at least two characters), so a
+  // count the file cannot hold is an error before anything is reserved for it.
+  uint64_t remaining = uint64_t(bytes.size()) - uint64_t(std::max<std::streamoff>(0, in.tellg()));
+  for (const auto& e : elements) {
+    uint64_t minBytes = 0;
+    for (const auto& pr : e.props) minBytes += fmt == Fmt::Ascii ? 2 : typeSize(pr.list ? pr.countType : pr.type);
+    if (minBytes > 0 && e.count > remaining / minBytes)
+      return fail("element '" + e.name + "' declares " + std::to_string(e.count) + " entries, but the file holds at most " +
+                  std::to_string(remaining / minBytes) + " (truncated?)");
+  }
+  auto readValue = [&](const std::string& t, const char* what, uint64_t i) -> double {
+    if (fmt == Fmt::Ascii) {
+      std::string tok;
+      if (!(in >> tok)) fail("truncated data in " + std::string(what) + " " + std::to_string(i));
+      char* end = nullptr;
+      double v = std::strtod(tok.c_str(), &end);
+      if (end == tok.c_str() || *end != '\0') fail("malformed number '" + tok.substr(0, 32) + "' in " + what + " " + std::to_string(i));
+      return v;
+    }
     size_t n = typeSize(t);
     unsigned char b[8];
-    if (!in.read(reinterpret_cast<char*>(b), std::streamsize(n))) fail("truncated data");
+    if (!in.read(reinterpret_cast<char*>(b), std::streamsize(n))) fail("truncated data in " + std::string(what) + " " + std::to_string(i));
     if ((fmt == Fmt::BinBE) == (std::endian::native == std::endian::little)) std::reverse(b, b + n);
     auto as = [&](auto v) { std::memcpy(&v, b, sizeof v); return double(v); };
     if (t == "char" || t == "int8") return as(int8_t());
@@ -263,33 +372,54 @@ TriangleMesh loadPly(const std::filesystem::path& path) {
     if (t == "float" || t == "float32") return as(float());
     return as(double());
   };
+  // An index or count: integral, non-negative, below `bound`.
+  auto integer = [&](double v, double bound, const std::string& what) -> uint32_t {
+    if (!(v >= 0.0) || v != std::floor(v) || v >= bound) fail(what + " is " + std::to_string(v) + " (must be an integer in 0.." + std::to_string(uint64_t(bound) - 1) + ")");
+    return uint32_t(v);
+  };
   TriangleMesh m;
+  uint64_t vertexCount = 0;
+  for (const auto& e : elements)
+    if (e.name == "vertex") vertexCount += e.count;
+  m.positions.reserve(size_t(vertexCount));
+  std::vector<uint32_t> poly;
   for (const auto& e : elements) {
-    for (size_t i = 0; i < e.count; ++i) {
+    const bool isVertex = e.name == "vertex", isFace = e.name == "face";
+    const char* what = isVertex ? "vertex" : isFace ? "face" : "element";
+    for (uint64_t i = 0; i < e.count; ++i) {
       Vec3 p(0.f), n(0.f);
       Vec2 uv(0.f, 0.f);
       bool hasN = false, hasUv = false;
       for (const auto& pr : e.props) {
         if (pr.list) {
-          size_t cnt = size_t(readValue(pr.countType));
-          std::vector<uint32_t> poly(cnt);
-          for (auto& v : poly) v = uint32_t(readValue(pr.type));
-          if (e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index")) {
+          uint32_t cnt = integer(readValue(pr.countType, what, i), double(lim.maxPolygonVertices) + 1,
+                                 std::string(what) + " " + std::to_string(i) + ": list length");
+          poly.resize(cnt);
+          const bool indices = isFace && (pr.name == "vertex_indices" || pr.name == "vertex_index");
+          for (auto& v : poly) {
+            double x = readValue(pr.type, what, i);
+            v = indices ? integer(x, double(std::max<uint64_t>(vertexCount, 1)), "face " + std::to_string(i) + ": vertex index") : 0u;
+          }
+          if (indices) {
             if (cnt < 3) fail("face " + std::to_string(i) + " has fewer than 3 vertices");
+            if (m.indices.size() / 3 + (cnt - 2) > lim.maxMeshTriangles)
+              throw ResourceError("mesh '" + name + "': more than " + std::to_string(lim.maxMeshTriangles) + " triangles");
             for (size_t k = 1; k + 1 < cnt; ++k) m.indices.insert(m.indices.end(), {poly[0], poly[k], poly[k + 1]});
           }
           continue;
         }
-        double v = readValue(pr.type);
-        if (e.name != "vertex") continue;
+        double v = readValue(pr.type, what, i);
+        if (!isVertex) continue;
+        if (!std::isfinite(v)) fail("vertex " + std::to_string(i) + ": property '" + pr.name + "' is not finite");
         if (pr.name == "x") p.x = float(v); else if (pr.name == "y") p.y = float(v); else if (pr.name == "z") p.z = float(v);
         else if (pr.name == "nx") { n.x = float(v); hasN = true; } else if (pr.name == "ny") n.y = float(v); else if (pr.name == "nz") n.z = float(v);
         else if (pr.name == "u" || pr.name == "s" || pr.name == "texture_u") { uv.x = float(v); hasUv = true; }
         else if (pr.name == "v" || pr.name == "t" || pr.name == "texture_v") uv.y = float(v);
       }
-      if (e.name == "vertex") {
+      if (isVertex) {
+        if (!isFinite(p)) fail("vertex " + std::to_string(i) + " is not finite (out of float range)");
         m.positions.push_back(p);
-        if (hasN) m.normals.push_back(lengthSquared(n) > 0 ? normalize(n) : Vec3(0, 0, 1));
+        if (hasN) m.normals.push_back(lengthSquared(n) > 0 && isFinite(n) ? normalize(n) : Vec3(0, 0, 1));
         if (hasUv) m.uvs.push_back(uv);
       }
     }
@@ -301,19 +431,27 @@ TriangleMesh loadPly(const std::filesystem::path& path) {
 
 }  // namespace
 
+TriangleMesh parseMesh(const std::string& bytes, MeshFormat format, const std::string& name) {
+  return format == MeshFormat::Ply ? parsePly(bytes, name) : parseObj(bytes, name);
+}
+
 TriangleMesh loadMesh(const std::filesystem::path& path) {
-  if (!std::filesystem::exists(path)) throw InputError("mesh '" + path.string() + "': file not found");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError("mesh '" + path.string() + "': file not found");
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-  if (ext == ".obj") return loadObj(path);
-  if (ext == ".ply") return loadPly(path);
-  if (ext.empty()) {  // content-addressed assets have no extension: PLY files say so in their first line
-    std::ifstream in(path, std::ios::binary);
-    char magic[4] = {0, 0, 0, 0};
-    in.read(magic, 3);
-    return std::string(magic) == "ply" ? loadPly(path) : loadObj(path);
-  }
-  throw InputError("mesh '" + path.string() + "': unsupported format '" + ext + "' (use .obj or .ply)");
+  if (!ext.empty() && ext != ".obj" && ext != ".ply")
+    throw InputError("mesh '" + path.string() + "': unsupported format '" + ext + "' (use .obj or .ply)");
+  uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError("mesh '" + path.string() + "': cannot read (" + ec.message() + ")");
+  if (size > inputLimits().maxFileBytes)
+    throw ResourceError("mesh '" + path.string() + "': " + humanBytes(size) + " (limit " + humanBytes(inputLimits().maxFileBytes) + ")");
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes(size_t(size), '\0');
+  if (!in.read(bytes.data(), std::streamsize(size))) throw InputError("mesh '" + path.string() + "': cannot read");
+  // Content-addressed assets have no extension: PLY files say so in their first line.
+  MeshFormat f = ext == ".ply" || (ext.empty() && bytes.rfind("ply", 0) == 0) ? MeshFormat::Ply : MeshFormat::Obj;
+  return parseMesh(bytes, f, path.string());
 }
 
 size_t validateMesh(TriangleMesh& mesh, const std::string& what) {
@@ -321,6 +459,14 @@ size_t validateMesh(TriangleMesh& mesh, const std::string& what) {
   if (mesh.indices.size() % 3 != 0) throw InputError(what + ": index count is not a multiple of 3");
   for (size_t i = 0; i < mesh.positions.size(); ++i)
     if (!isFinite(mesh.positions[i])) throw InputError(what + ": vertex " + std::to_string(i) + " is not finite");
+  if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+    throw InputError(what + ": " + std::to_string(mesh.normals.size()) + " normals for " + std::to_string(mesh.positions.size()) + " vertices");
+  if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
+    throw InputError(what + ": " + std::to_string(mesh.uvs.size()) + " uvs for " + std::to_string(mesh.positions.size()) + " vertices");
+  for (size_t i = 0; i < mesh.normals.size(); ++i)
+    if (!isFinite(mesh.normals[i])) throw InputError(what + ": normal " + std::to_string(i) + " is not finite");
+  for (size_t i = 0; i < mesh.uvs.size(); ++i)
+    if (!std::isfinite(mesh.uvs[i].x) || !std::isfinite(mesh.uvs[i].y)) throw InputError(what + ": uv " + std::to_string(i) + " is not finite");
   for (uint32_t idx : mesh.indices)
     if (idx >= mesh.positions.size()) throw InputError(what + ": triangle index " + std::to_string(idx) + " out of range");
   // Remove degenerate triangles first: they carry no area and would break the edge count.

@@ -28,11 +28,17 @@ TriangleMesh makeCylinder(int segments, bool capped);
 TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments);
 
 // Loads .obj (tinyobjloader) or .ply (ascii / binary little- and big-endian).
-// Throws InputError naming the file on any problem.
+// Throws InputError naming the file on any problem: malformed or truncated data, indices out of
+// range, non-finite numbers; ResourceError when a count the file declares exceeds inputLimits().
 TriangleMesh loadMesh(const std::filesystem::path& path);
 
+enum class MeshFormat { Obj, Ply };
+// The same from bytes in memory; `name` is what errors call the mesh.
+TriangleMesh parseMesh(const std::string& bytes, MeshFormat format, const std::string& name);
+
 // Throws InputError("<what>: ...") if the mesh is empty, has out-of-range indices, non-finite
-// positions, an edge shared by more than two triangles (non-manifold) or zero total area.
+// positions, normals or uvs, attribute arrays whose size differs from the positions, an edge
+// shared by more than two triangles (non-manifold) or zero total area.
 // Degenerate (zero-area) triangles are removed; returns how many were.
 size_t validateMesh(TriangleMesh& mesh, const std::string& what);
 

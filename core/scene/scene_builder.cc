@@ -67,20 +67,27 @@ std::shared_ptr<Image> loadTextureImage(const v1::Texture& t, const AssetResolve
     if (p.has_color_a()) spec.a = rgb(p.color_a(), field + ".procedural.color_a");
     if (p.has_color_b()) spec.b = rgb(p.color_b(), field + ".procedural.color_b");
     spec.seed = p.seed();
+    const int side = inputLimits().maxImageSide;
+    if (spec.width > side || spec.height > side)
+      throw ResourceError(field + ".procedural: " + std::to_string(spec.width) + "x" + std::to_string(spec.height) + " texels (limit " +
+                          std::to_string(side) + " per side)");
+    if (assets.budget) assets.budget->charge(uint64_t(spec.width) * uint64_t(spec.height) * 3 * sizeof(float), field + ".procedural");
     try {
       return std::make_shared<Image>(makeProceduralImage(spec));
     } catch (const InputError& e) {
-      fail(field + ".procedural", e.what());
+      rethrowWithMessage(e, field + ".procedural: " + e.what());
     }
   }
   auto path = assets.resolve(t.image(), field + ".image");
   try {
-    auto img = std::make_shared<Image>(readImage(path, colour));
+    auto img = std::make_shared<Image>(readImage(path, colour, assets.budget));
     for (float v : img->data())
       if (!std::isfinite(v)) fail(field + ".image", "'" + path.string() + "' contains non-finite texels");
     return img;
   } catch (const InputError& e) {
-    fail(field + ".image", e.what());
+    std::string what = e.what();
+    if (what.rfind(field, 0) == 0) throw;
+    rethrowWithMessage(e, field + ".image: " + what);
   }
 }
 
@@ -150,19 +157,34 @@ Material material(const v1::Material& m, const AssetResolver& assets, const std:
   return out;
 }
 
+// Memory a mesh takes once built: vertex attributes, indices and its share of the BVH.
+void chargeMesh(const AssetResolver& assets, uint64_t vertices, uint64_t triangles, const std::string& field) {
+  const InputLimits& lim = inputLimits();
+  if (vertices > lim.maxMeshVertices || triangles > lim.maxMeshTriangles)
+    throw ResourceError(field + ": " + std::to_string(vertices) + " vertices, " + std::to_string(triangles) + " triangles (limits " +
+                        std::to_string(lim.maxMeshVertices) + ", " + std::to_string(lim.maxMeshTriangles) + ")");
+  if (assets.budget) assets.budget->charge(vertices * 32 + triangles * 60, field);
+}
+
 TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const std::string& field) {
   switch (s.geometry_case()) {
-    case v1::Shape::kMesh: return loadMesh(assets.resolve(s.mesh(), field + ".mesh"));
+    case v1::Shape::kMesh: {
+      TriangleMesh m = loadMesh(assets.resolve(s.mesh(), field + ".mesh"));
+      chargeMesh(assets, m.positions.size(), m.triangleCount(), field + ".mesh");
+      return m;
+    }
     case v1::Shape::kQuad: return makeQuad();
     case v1::Shape::kBox: return makeBox();
     case v1::Shape::kSphere: {
       int rings = s.sphere().rings() > 0 ? s.sphere().rings() : 32;
       if (rings < 2 || rings > 4096) fail(field + ".sphere.rings", "must be in 2..4096");
+      chargeMesh(assets, uint64_t(rings + 1) * uint64_t(2 * rings + 1), uint64_t(4) * uint64_t(rings) * uint64_t(rings), field + ".sphere");
       return makeSphere(rings);
     }
     case v1::Shape::kCylinder: {
       int seg = s.cylinder().segments() > 0 ? s.cylinder().segments() : 64;
       if (seg < 3 || seg > 65536) fail(field + ".cylinder.segments", "must be in 3..65536");
+      chargeMesh(assets, uint64_t(4) * uint64_t(seg + 2), uint64_t(4) * uint64_t(seg), field + ".cylinder");
       return makeCylinder(seg, s.cylinder().capped());
     }
     case v1::Shape::kTorusKnot: {
@@ -171,6 +193,7 @@ TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const st
       double r = k.tube_radius() > 0 ? k.tube_radius() : 0.15;
       if (seg < 8 || tube < 3 || seg > 65536 || tube > 4096) fail(field + ".torus_knot", "segments must be in 8..65536 and tube_segments in 3..4096");
       if (!(r < 1.0)) fail(field + ".torus_knot.tube_radius", "must be in (0, 1)");
+      chargeMesh(assets, uint64_t(seg + 1) * uint64_t(tube + 1), uint64_t(2) * uint64_t(seg) * uint64_t(tube), field + ".torus_knot");
       return makeTorusKnot(k.p() != 0 ? k.p() : 2, k.q() != 0 ? k.q() : 3, float(r), seg, tube);
     }
     default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder or torus_knot)");
@@ -217,7 +240,7 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
     } catch (const InputError& e) {
       std::string what = e.what();
       if (what.rfind(field, 0) == 0) throw;
-      fail(field, what);
+      rethrowWithMessage(e, field + ": " + what);
     }
     mesh.transform(xf);
     validateMesh(mesh, field);

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 
+#include "core/io/limits.h"
 #include "core/render/render_options.h"
 #include "core/scene/scene.h"
 #include "invr/v1/job.pb.h"
@@ -17,6 +18,9 @@ struct AssetResolver {
   std::filesystem::path baseDir = ".";  // for AssetRef.path
   // For AssetRef.sha256 (the service's asset store); unset means hashes are not accepted.
   std::function<std::filesystem::path(const std::string&)> byHash;
+  // Charged before each texture, mesh and target is allocated (the service's per-job limit);
+  // null: only the per-file limits of inputLimits() apply.
+  MemoryBudget* budget = nullptr;
   std::filesystem::path resolve(const invr::v1::AssetRef& ref, const std::string& field) const;
 };
 

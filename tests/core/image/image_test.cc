@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/io/limits.h"
 
 namespace invr {
 namespace {
@@ -83,6 +84,62 @@ TEST(ImageIO, ErrorsNameTheFile) {
   std::ofstream(tmp("garbage.png")) << "not an image";
   EXPECT_THROW(readImage(tmp("garbage.png")), InputError);
   EXPECT_THROW(writeImage(tmp("x.bmpx"), gradient(2, 2)), InputError);
+}
+
+uint32_t crc32(const std::string& bytes) {
+  uint32_t c = 0xffffffffu;
+  for (unsigned char b : bytes) {
+    c ^= b;
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+  }
+  return ~c;
+}
+
+std::string bigEndian(uint32_t v) { return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)}; }
+
+// A PNG header declaring w x h RGB pixels, followed by a few bytes of (not decodable) pixel data:
+// readers learn the size before they reach it.
+void writePngHeader(const std::filesystem::path& p, uint32_t w, uint32_t h) {
+  std::string ihdr = "IHDR" + bigEndian(w) + bigEndian(h) + std::string{8, 2, 0, 0, 0};
+  std::string idat = "IDAT" + std::string("\x78\x9c\x00\x00", 4);
+  std::string iend = "IEND";
+  std::ofstream(p, std::ios::binary) << std::string("\x89PNG\r\n\x1a\n", 8) << bigEndian(13) << ihdr << bigEndian(crc32(ihdr))
+                                     << bigEndian(4) << idat << bigEndian(crc32(idat)) << bigEndian(0) << iend << bigEndian(crc32(iend));
+}
+
+TEST(ImageIO, OversizedHeadersAreRefusedBeforeAllocating) {
+  writePngHeader(tmp("huge.png"), 30000, 30000);  // 10 GB of float pixels if trusted
+  try {
+    readImage(tmp("huge.png"));
+    FAIL() << "no error";
+  } catch (const ResourceError& e) {
+    EXPECT_NE(std::string(e.what()).find("30000x30000 pixels (limit 16384 per side)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("huge.png"), std::string::npos) << e.what();
+  }
+  // In bounds per side but over what is left of a job's budget.
+  writePngHeader(tmp("big.png"), 8192, 8192);
+  MemoryBudget budget(uint64_t(100) << 20);
+  try {
+    readImage(tmp("big.png"), true, &budget);
+    FAIL() << "no error";
+  } catch (const ResourceError& e) {
+    EXPECT_NE(std::string(e.what()).find("memory budget of 100 MiB"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(budget.used(), 0u);
+  // Within the budget a header without pixels is a decode error, not a crash.
+  writePngHeader(tmp("small.png"), 4, 4);
+  MemoryBudget roomy(uint64_t(100) << 20);
+  EXPECT_THROW(readImage(tmp("small.png"), true, &roomy), InputError);
+}
+
+TEST(ImageIO, MemoryBudgetCountsCharges) {
+  MemoryBudget b(1000);
+  b.charge(600, "a");
+  EXPECT_EQ(b.used(), 600u);
+  EXPECT_THROW(b.charge(401, "b"), ResourceError);
+  b.charge(400, "c");
+  EXPECT_EQ(b.used(), 1000u);
+  EXPECT_THROW(b.charge(uint64_t(-1), "d"), ResourceError);  // no overflow
 }
 
 }  // namespace

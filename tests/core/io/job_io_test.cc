@@ -62,5 +62,24 @@ TEST(JobJson, MissingFileIsAnError) {
   EXPECT_THROW(loadJobFile("/nonexistent/job.json"), InputError);
 }
 
+TEST(JobJson, UnknownEnumNumbersAreRefusedNamingTheField) {
+  auto e = errorOf(R"({"zoo": "cornell", "optimization": {"method": 99}})");
+  EXPECT_TRUE(contains(e, "optimization.method: unknown value 99 (use one of METHOD_PT, METHOD_RIS, METHOD_RESTIR)")) << e;
+  e = errorOf(R"({"zoo": "cornell", "render": {"estimator": 42}})");
+  EXPECT_TRUE(contains(e, "render.estimator: unknown value 42")) << e;
+  EXPECT_EQ(errorOf(R"({"zoo": "cornell", "optimization": {"method": 3}})"), "");
+}
+
+TEST(JobJson, StringsAndRepeatedFieldsAreBounded) {
+  auto e = errorOf(R"({"zoo": "cornell", "name": ")" + std::string(300, 'n') + R"("})");
+  EXPECT_TRUE(contains(e, "name: 300 bytes long (limit 256)")) << e;
+  e = errorOf(R"({"scene": {"shapes": [{"name": "a", "mesh": {"path": ")" + std::string(5000, 'p') + R"("}}]}})");
+  EXPECT_TRUE(contains(e, "scene.shapes[0].mesh.path: 5000 bytes long (limit 4096)")) << e;
+  std::string many = R"({"zoo": "cornell", "optimization": {"parameters": [)";
+  for (int i = 0; i < 65537; ++i) many += std::string(i ? "," : "") + "{}";
+  e = errorOf(many + "]}}");
+  EXPECT_TRUE(contains(e, "optimization.parameters: 65537 entries (limit 65536)")) << e;
+}
+
 }  // namespace
 }  // namespace invr

@@ -5,11 +5,14 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/io/limits.h"
 
 namespace invr {
 namespace {
@@ -118,9 +121,130 @@ TEST(Mesh, BadFilesAreInputErrors) {
 TEST(Mesh, DegenerateTrianglesAreDropped) {
   TriangleMesh m = makeQuad();
   m.positions.push_back({5, 5, 5});
+  m.uvs.push_back({0, 0});
   m.indices.insert(m.indices.end(), {0, 0, 4});
   EXPECT_EQ(validateMesh(m, "quad"), 1u);
   EXPECT_EQ(m.triangleCount(), 2u);
+}
+
+// The message of the error parsing `bytes` raises ("" if none), and whether it was a limit.
+struct ParseOutcome {
+  std::string message;
+  bool limit = false;
+};
+ParseOutcome parseError(const std::string& bytes, MeshFormat f) {
+  try {
+    TriangleMesh m = parseMesh(bytes, f, "m");
+    validateMesh(m, "m");
+  } catch (const ResourceError& e) {
+    return {e.what(), true};
+  } catch (const InputError& e) {
+    return {e.what(), false};
+  }
+  return {};
+}
+
+bool has(const ParseOutcome& o, const std::string& part) { return o.message.find(part) != std::string::npos; }
+
+TEST(Mesh, ObjIndicesOfEveryKindAreRangeChecked) {
+  auto e = parseError("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//5 2//5 3//5\n", MeshFormat::Obj);
+  EXPECT_TRUE(has(e, "references normal 5 of 1")) << e.message;
+  e = parseError("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//2\n", MeshFormat::Obj);  // one past the end
+  EXPECT_TRUE(has(e, "references normal 2 of 1")) << e.message;
+  e = parseError("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/9 3/1\n", MeshFormat::Obj);
+  EXPECT_TRUE(has(e, "references texture coordinate 9 of 1")) << e.message;
+  e = parseError("v 0 0 0\nv 1 0 0\nf 1 2 7\n", MeshFormat::Obj);
+  EXPECT_TRUE(has(e, "references vertex 7 of 2")) << e.message;
+  EXPECT_EQ(parseError("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n", MeshFormat::Obj).message, "");
+}
+
+TEST(Mesh, NonFiniteNumbersAreCaughtInEveryFormat) {
+  // tinyobjloader turns "nan" and "1e999" into numbers; they must not reach the BVH.
+  EXPECT_TRUE(has(parseError("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", MeshFormat::Obj), "is not a finite number"));
+  EXPECT_TRUE(has(parseError("v 1e999 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", MeshFormat::Obj), "is not a finite number"));
+  EXPECT_TRUE(has(parseError("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn nan 0 1\nf 1//1 2//1 3//1\n", MeshFormat::Obj), "is not a finite number"));
+  EXPECT_TRUE(has(parseError("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt inf 0\nf 1/1 2/1 3/1\n", MeshFormat::Obj), "line 4: 'inf' is not a finite number"));
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  EXPECT_TRUE(has(parseError(head + "nan 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", MeshFormat::Ply), "not finite"));
+  EXPECT_TRUE(has(parseError(head + "1e300 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", MeshFormat::Ply), "not finite"));
+  EXPECT_TRUE(has(parseError(head + "x 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", MeshFormat::Ply), "malformed number 'x' in vertex 0"));
+}
+
+TEST(Mesh, PlyCountsAreCheckedBeforeAnythingIsAllocated) {
+  const std::string vertices = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  auto e = parseError(vertices + "element face 4000000000\nproperty list uchar int vertex_indices\nend_header\n", MeshFormat::Ply);
+  EXPECT_TRUE(e.limit) << e.message;
+  EXPECT_TRUE(has(e, "declares 4000000000 entries (limit 67108864)")) << e.message;
+  e = parseError(vertices + "element face -1\nproperty list uchar int vertex_indices\nend_header\n", MeshFormat::Ply);
+  EXPECT_FALSE(e.limit);
+  EXPECT_TRUE(has(e, "count '-1' is not a non-negative integer")) << e.message;
+  // In bounds, but more entries than the file has bytes for: an error before any reservation.
+  e = parseError(vertices + "element face 1000000\nproperty list uchar int vertex_indices\nend_header\n" + std::string(36, '\0'),
+                 MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "declares 1000000 entries, but the file holds at most")) << e.message;
+  // A face list longer than any polygon we accept (uint32 count of 4e9).
+  std::string bad = vertices + "element face 1\nproperty list uint int vertex_indices\nend_header\n" + std::string(36, '\0');
+  uint32_t n = 4000000000u;
+  bad.append(reinterpret_cast<const char*>(&n), 4);
+  bad.append(16, '\0');
+  e = parseError(bad, MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "list length is 4000000000")) << e.message;
+}
+
+TEST(Mesh, PlyIndicesWrongCountsAndTruncationAreNamed) {
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+  EXPECT_TRUE(has(parseError(head + "3 0 1 3\n", MeshFormat::Ply), "face 0: vertex index is 3"));
+  EXPECT_TRUE(has(parseError(head + "3 0 1 -1\n", MeshFormat::Ply), "face 0: vertex index is -1"));
+  EXPECT_TRUE(has(parseError(head + "3 0 1 1.5\n", MeshFormat::Ply), "vertex index is 1.5"));
+  EXPECT_TRUE(has(parseError(head + "3 0 1\n", MeshFormat::Ply), "truncated data in face 0"));
+  EXPECT_TRUE(has(parseError(head + "2 0 1\n", MeshFormat::Ply), "fewer than 3 vertices"));
+  EXPECT_TRUE(has(parseError("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n", MeshFormat::Ply), "no end_header"));
+  EXPECT_TRUE(has(parseError("ply\nformat ascii 1.0\nelement vertex 3\nproperty quaternion x\nend_header\n", MeshFormat::Ply),
+                  "unknown property type 'quaternion'"));
+  EXPECT_TRUE(has(parseError("ply\nelement vertex 0\nend_header\n", MeshFormat::Ply), "no 'format' line"));
+  EXPECT_EQ(parseError(head + "3 0 1 2\n", MeshFormat::Ply).message, "");
+}
+
+// Binary PLYs in both byte orders, with and without normals and uvs, give the same mesh.
+TEST(Mesh, PlyBinaryBothEndiansWithAndWithoutAttributes) {
+  auto put = [](std::string& out, const void* p, size_t n, bool big) {
+    std::string b(static_cast<const char*>(p), n);
+    if (big) std::reverse(b.begin(), b.end());
+    out += b;
+  };
+  for (bool big : {false, true})
+    for (bool attrs : {false, true}) {
+      std::string f = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                      " 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+      if (attrs) f += "property float nx\nproperty float ny\nproperty float nz\nproperty float u\nproperty float v\n";
+      f += "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+      const float v[3][8] = {{0, 0, 0, 0, 0, 2, 0, 0}, {1, 0, 0, 0, 0, 2, 1, 0}, {0, 1, 0, 0, 0, 2, 0, 1}};
+      for (const auto& vert : v)
+        for (int k = 0; k < (attrs ? 8 : 3); ++k) put(f, &vert[k], 4, big);
+      f += char(3);
+      for (int32_t i : {0, 1, 2}) put(f, &i, 4, big);
+      TriangleMesh m = parseMesh(f, MeshFormat::Ply, "m");
+      ASSERT_EQ(m.triangleCount(), 1u);
+      EXPECT_EQ(m.positions[1].x, 1.f);
+      EXPECT_EQ(m.positions[2].y, 1.f);
+      EXPECT_EQ(m.normals.size(), attrs ? 3u : 0u);
+      EXPECT_EQ(m.uvs.size(), attrs ? 3u : 0u);
+      if (attrs) {
+        EXPECT_EQ(m.normals[0].z, 1.f);  // normalised
+        EXPECT_EQ(m.uvs[2].y, 1.f);
+      }
+    }
+}
+
+TEST(Mesh, AttributeArraysMustMatchThePositions) {
+  TriangleMesh m = makeQuad();
+  m.normals.assign(3, Vec3(0, 0, 1));
+  EXPECT_THROW(validateMesh(m, "quad"), InputError);
+  m = makeQuad();
+  m.uvs[1] = Vec2(std::nanf(""), 0.f);
+  EXPECT_THROW(validateMesh(m, "quad"), InputError);
 }
 
 }  // namespace

@@ -1,0 +1,30 @@
+#include "core/diff/memory_model.h"
+
+#include <algorithm>
+
+#include "core/restir/reservoir_store.h"
+
+namespace invr {
+
+WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
+  const Scene& s = *p.scene;
+  const auto& g = p.gradient;
+  const double pixels = double(s.width) * double(s.height);
+  double tris = 0;
+  for (const auto& m : s.meshes) tris += double(m.triangleCount());
+  size_t maxShard = 0;
+  for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
+  WorkerMemory w;
+  w.geometry = tris * (3 * 12 + 12 + 4 * 3) * 2.5;  // vertices, face normals, indices; BVH ~1.5x
+  double texels = 0;
+  for (const auto& sl : p.params.slots()) texels += sl.width ? double(sl.size) * 4 : 0;
+  w.textures = texels * 3;
+  w.images = double(maxShard) * pixels * 12 * 3;
+  if (g.method == GradientMethod::Restir)
+    w.reservoirs = double(maxShard) * pixels * double(g.sppPrimal + (g.forwardOnly ? 0 : g.sppGradient)) *
+                   double(sizeof(StoredReservoir) + 24) * 2;  // current and previous chain, kd-tree
+  w.gradients = double(p.params.size()) * 8 * double(threads + 2);
+  return w;
+}
+
+}  // namespace invr

@@ -1,0 +1,56 @@
+#include "server/task_check.h"
+
+#include <cmath>
+
+namespace invr::server {
+
+namespace {
+
+constexpr size_t kMaxErrorBytes = 64 * 1024;
+constexpr int kMaxChannels = 4;
+
+bool finiteNonNegative(double v) { return std::isfinite(v) && v >= 0.0; }
+
+}  // namespace
+
+std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const ResultShape& shape) {
+  if (r.task_id() != task.task_id()) return "answers task " + std::to_string(r.task_id()) + ", not " + std::to_string(task.task_id());
+  if (r.job_id() != task.job_id()) return "names job '" + r.job_id().substr(0, 64) + "', the task is for " + task.job_id();
+  if (r.shard() != task.shard()) return "names shard " + std::to_string(r.shard()) + ", the task is for shard " + std::to_string(task.shard());
+  if (r.error().size() > kMaxErrorBytes) return "error text of " + std::to_string(r.error().size()) + " bytes (limit 65536)";
+  if (!r.error().empty()) return "";  // a failed task: its error is reported, nothing else is read
+  if (r.spec_unknown()) return "";    // the spec is sent again; nothing else is read
+  if (r.input_error()) return "input_error set without an error text";
+  for (double s : {r.seconds_primal(), r.seconds_derivative(), r.seconds_reservoir(), r.seconds_session(), r.seconds_stage1()})
+    if (!finiteNonNegative(s)) return "a timing is negative or not finite";
+  if (!std::isfinite(r.mean_m()) || !std::isfinite(r.mean_neighbours())) return "reservoir statistics are not finite";
+  if (task.kind() == v1::Task::FINAL_RENDER) {
+    if (r.gradient_size() != 0) return "a final render carries a gradient";
+    const int expected = 2 * task.views_size();  // each view's render, then its target
+    if (r.renders_size() != expected)
+      return std::to_string(r.renders_size()) + " images for " + std::to_string(task.views_size()) + " view(s) (expected " +
+             std::to_string(expected) + ")";
+    for (int k = 0; k < r.renders_size(); ++k) {
+      const v1::FloatImage& im = r.renders(k);
+      if (im.width() != shape.width || im.height() != shape.height)
+        return "image " + std::to_string(k) + " is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) + ", the film is " +
+               std::to_string(shape.width) + "x" + std::to_string(shape.height);
+      if (im.channels() < 1 || im.channels() > kMaxChannels)
+        return "image " + std::to_string(k) + " has " + std::to_string(im.channels()) + " channels (1 to 4)";
+      const uint64_t values = uint64_t(shape.width) * uint64_t(shape.height) * uint64_t(im.channels());
+      if (uint64_t(im.pixels_size()) != values)
+        return "image " + std::to_string(k) + " has " + std::to_string(im.pixels_size()) + " values, expected " + std::to_string(values);
+    }
+    return "";
+  }
+  if (task.kind() != v1::Task::GRADIENT) return "answers a task of unknown kind";
+  // Render-only (burn-in) steps may return no gradient; every other step one value per parameter.
+  if (size_t(r.gradient_size()) != shape.parameters && !(task.render_only() && r.gradient_size() == 0))
+    return "gradient has " + std::to_string(r.gradient_size()) + " values, the job has " + std::to_string(shape.parameters) + " parameters";
+  if (r.renders_size() != 0) return "a gradient result carries images";
+  // A non-finite gradient or loss is not malformed: it is how divergence shows, and the step
+  // loop's divergence check fails the job naming the parameter.
+  return "";
+}
+
+}  // namespace invr::server

@@ -1,0 +1,115 @@
+#include "core/optim/results_io.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "test_util.h"
+
+namespace invr {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A material whose name has a quote, a backslash and a newline (escaped here as JSON), a
+// textured material and a light.
+constexpr const char* kScene = R"({
+  "materials": [{"name": "say \"hi\" C:\\dir\nnext", "diffuse": {"albedo": {"constant": {"r": 0.5, "g": 0.5, "b": 0.5}}}},
+                {"name": "t", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 4}, "scale": 0.5}}}],
+  "shapes": [{"name": "q", "material": "say \"hi\" C:\\dir\nnext", "quad": {}}, {"name": "p", "material": "t", "quad": {}}],
+  "lights": [{"name": "l", "point": {"position": {"z": 2}, "intensity": {"r": 1, "g": 1, "b": 1}}}],
+  "views": [{"eye": {"z": 3}, "target": {}}]
+})";
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() /
+           ("invr_results_io_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+std::string readText(const fs::path& file) {
+  std::ifstream in(file);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+nlohmann::json readJson(const fs::path& file) { return nlohmann::json::parse(readText(file)); }  // throws on invalid JSON
+
+TEST(ResultsIo, ParameterNamesWithQuotesBackslashesAndNewlinesRoundTrip) {
+  const std::string odd = "materials/say \"hi\" C:\\dir\nnext/albedo";
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  reg.add(*scene, odd);
+  reg.add(*scene, "lights/l/intensity");
+  std::vector<float> theta = reg.read(*scene);
+  ASSERT_EQ(theta.size(), 6u);
+  theta = {0.1f, 0.123456789f, 0.75f, 2.5f, 1e-7f, 12345.6f};
+
+  TempDir dir;
+  auto files = writeParameters(dir.path, reg, theta);
+  ASSERT_EQ(files, std::vector<std::string>{"parameters.json"});
+  nlohmann::json js;
+  ASSERT_NO_THROW(js = readJson(dir.path / "parameters.json"));
+  ASSERT_TRUE(js.is_object());
+  ASSERT_EQ(js.size(), 2u);
+  ASSERT_TRUE(js.contains(odd)) << js.dump();
+  ASSERT_TRUE(js.contains("lights/l/intensity")) << js.dump();
+  const auto& a = js.at(odd);
+  const auto& l = js.at("lights/l/intensity");
+  ASSERT_TRUE(a.is_array() && a.size() == 3u) << a.dump();
+  ASSERT_TRUE(l.is_array() && l.size() == 3u) << l.dump();
+  // Values are written with 6 significant digits (as before): these read back as the same floats.
+  for (size_t k = 0; k < 3; ++k) {
+    ASSERT_TRUE(a[k].is_number() && l[k].is_number()) << k;
+    if (k != 1) {
+      EXPECT_EQ(a[k].get<float>(), theta[k]) << k;
+    }
+    EXPECT_EQ(l[k].get<float>(), theta[3 + k]) << k;
+  }
+  EXPECT_NEAR(a[1].get<double>(), 0.123457, 1e-12);
+  // Written in the registry's order.
+  std::string text = readText(dir.path / "parameters.json");
+  EXPECT_LT(text.find("materials/say"), text.find("lights/l/intensity")) << text;
+}
+
+TEST(ResultsIo, TexturesAreNamedByTheirImageFile) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  reg.add(*scene, "materials/t/albedo");
+  std::vector<float> theta = reg.read(*scene);
+  TempDir dir;
+  auto files = writeParameters(dir.path, reg, theta);
+  ASSERT_EQ(files, (std::vector<std::string>{"parameters.json", "materials_t_albedo.exr"}));
+  EXPECT_GT(fs::file_size(dir.path / "materials_t_albedo.exr"), 0u);
+  nlohmann::json js = readJson(dir.path / "parameters.json");
+  EXPECT_EQ(js, nlohmann::json::parse(R"({"materials/t/albedo": {"texture": "materials_t_albedo.exr", "width": 4, "height": 4}})"));
+}
+
+TEST(ResultsIo, NonFiniteValuesStayValidJson) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  reg.add(*scene, "lights/l/intensity");
+  std::vector<float> theta = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), 1.f};
+  TempDir dir;
+  writeParameters(dir.path, reg, theta);
+  nlohmann::json js;
+  ASSERT_NO_THROW(js = readJson(dir.path / "parameters.json"));
+  EXPECT_EQ(js.at("lights/l/intensity"), nlohmann::json::parse("[null, null, 1.0]"));
+}
+
+}  // namespace
+}  // namespace invr

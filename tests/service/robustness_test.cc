@@ -1,0 +1,472 @@
+// Integration tests for what a hostile or faulty user, client or worker can send: malformed files,
+// oversized headers, unknown enums, a worker answering with the wrong shapes, a worker that
+// stalls, a cancel during a long render, a server restart under `invr watch`, a second server.
+// Each asserts the job's outcome and that the server keeps serving.
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <atomic>
+#include <cstdio>
+#include <ctime>
+#include <cstdint>
+#include <map>
+#include <mutex>
+
+#include "core/diff/problem.h"
+#include "core/scene/zoo.h"
+#include "tests/service/cluster.h"
+
+namespace invr {
+namespace {
+
+using namespace invr::test;
+namespace v1 = invr::v1;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+// A valid small job still runs to the end: the server is healthy.
+void expectHealthy(Cluster& c) {
+  std::string id;
+  ASSERT_TRUE(c.submit(smallJob("cornell", 2), &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_FALSE(evs.empty());
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+}
+
+// Cornell as an inline scene, so tests can put uploaded assets into it.
+v1::JobSpec inlineCornell() {
+  v1::JobSpec job = smallJob("cornell", 2);
+  *job.mutable_scene() = zooScene("cornell");
+  return job;
+}
+
+uint32_t crc32(const std::string& bytes) {
+  uint32_t c = 0xffffffffu;
+  for (unsigned char b : bytes) {
+    c ^= b;
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+  }
+  return ~c;
+}
+
+std::string bigEndian(uint32_t v) {
+  return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)};
+}
+
+// A PNG whose header declares w x h pixels (8-bit RGB) followed by 4 bytes of pixel data: a
+// reader that trusts the header allocates w x h first.
+std::string pngHeaderOnly(uint32_t w, uint32_t h) {
+  std::string ihdr = "IHDR" + bigEndian(w) + bigEndian(h) + std::string{8, 2, 0, 0, 0};
+  std::string idat = "IDAT" + std::string("\x78\x9c\x00\x00", 4);
+  std::string iend = "IEND";
+  return std::string("\x89PNG\r\n\x1a\n", 8) + bigEndian(13) + ihdr + bigEndian(crc32(ihdr)) + bigEndian(4) + idat +
+         bigEndian(crc32(idat)) + bigEndian(0) + iend + bigEndian(crc32(iend));
+}
+
+grpc::Status submitWith(Cluster& c, const v1::JobSpec& job) { return c.submit(job, nullptr); }
+
+TEST(Robustness, MalformedFilesOversizedHeadersAndBadEnumsAreRefusedAndTheServerKeepsServing) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  // A small job budget keeps the procedural-texture case cheap: 4096^2 RGB floats are 192 MiB.
+  c.startServer(0, {"--max-job-memory-mb", "300"});
+  c.startWorker(2);
+
+  auto withMesh = [&](const std::string& bytes) {
+    v1::JobSpec job = inlineCornell();
+    auto* shape = job.mutable_scene()->add_shapes();
+    shape->set_name("user_mesh");
+    shape->set_material("white");
+    shape->mutable_mesh()->set_sha256(c.upload(bytes));
+    return job;
+  };
+  // An OBJ whose faces name normal 5 of 1 (once read past the array and crashed the server).
+  grpc::Status st = submitWith(c, withMesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//5 2//5 3//5\n"));
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_NE(st.error_message().find("references normal 5 of 1"), std::string::npos) << st.error_message();
+  EXPECT_NE(st.error_message().find("scene.shapes[8] (user_mesh)"), std::string::npos) << st.error_message();
+  // Texture coordinates likewise.
+  st = submitWith(c, withMesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/9 3/1\n"));
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_NE(st.error_message().find("texture coordinate 9 of 1"), std::string::npos) << st.error_message();
+  // PLY face counts beyond the limit or negative.
+  const std::string plyHead = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  st = submitWith(c, withMesh(plyHead + "element face 4000000000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  EXPECT_NE(st.error_message().find("declares 4000000000"), std::string::npos) << st.error_message();
+  st = submitWith(c, withMesh(plyHead + "element face -1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n"));
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+  EXPECT_NE(st.error_message().find("count '-1'"), std::string::npos) << st.error_message();
+
+  // A PNG texture declaring 30000x30000 pixels: refused from its header, nothing allocated.
+  {
+    v1::JobSpec job = inlineCornell();
+    job.mutable_scene()->mutable_materials(0)->mutable_diffuse()->mutable_albedo()->mutable_image()->set_sha256(
+        c.upload(pngHeaderOnly(30000, 30000)));
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+    EXPECT_NE(st.error_message().find("30000x30000 pixels (limit 16384 per side)"), std::string::npos) << st.error_message();
+    EXPECT_NE(st.error_message().find("scene.materials[0] (white).diffuse.albedo.image"), std::string::npos) << st.error_message();
+  }
+  // The same as a target image.
+  {
+    v1::JobSpec job = smallJob("cornell", 2);
+    job.mutable_optimization()->add_targets()->set_sha256(c.upload(pngHeaderOnly(30000, 30000)));
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+    EXPECT_NE(st.error_message().find("optimization.targets[0]"), std::string::npos) << st.error_message();
+  }
+  // In-bounds procedural textures that together exceed the job's memory budget.
+  {
+    v1::JobSpec job = inlineCornell();
+    for (int m = 0; m < 3; ++m) {
+      auto* p = job.mutable_scene()->mutable_materials(m)->mutable_diffuse()->mutable_albedo()->mutable_procedural();
+      p->set_pattern("checker");
+      p->set_width(4096);
+    }
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+    EXPECT_NE(st.error_message().find("memory budget of 300 MiB"), std::string::npos) << st.error_message();
+  }
+  // Unknown enum numbers are not run as something else.
+  {
+    v1::JobSpec job = smallJob("cornell", 2);
+    job.mutable_optimization()->set_method(static_cast<v1::GradientMethod>(99));
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+    EXPECT_NE(st.error_message().find("optimization.method: unknown value 99"), std::string::npos) << st.error_message();
+    job = smallJob("cornell", 2);
+    job.mutable_render()->set_estimator(static_cast<v1::Estimator>(42));
+    st = submitWith(c, job);
+    EXPECT_NE(st.error_message().find("render.estimator: unknown value 42"), std::string::npos) << st.error_message();
+  }
+  // A 4 MiB job name is refused, not logged.
+  {
+    v1::JobSpec job = smallJob("cornell", 2);
+    job.set_name(std::string(size_t(4) << 20, 'x'));
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+    EXPECT_NE(st.error_message().find("name: 4194304 bytes long (limit 256)"), std::string::npos) << st.error_message();
+    std::ifstream log(tmp.path / "server.log");
+    std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+    EXPECT_LT(text.size(), size_t(1) << 20);
+  }
+  expectHealthy(c);
+}
+
+// A worker that dials in and answers every task with a result of the wrong shape.
+class FakeWorker {
+ public:
+  explicit FakeWorker(const std::string& address) {
+    stub_ = v1::WorkerService::NewStub(wire::channel(address));
+    thread_ = std::thread([this] { run(); });
+  }
+  ~FakeWorker() {
+    ctx_.TryCancel();
+    thread_.join();
+  }
+  int answered() const { return answered_; }
+
+ private:
+  void run() {
+    auto stream = stub_->Connect(&ctx_);
+    v1::WorkerMessage hello;
+    hello.mutable_hello()->set_name("fake");
+    hello.mutable_hello()->set_capacity(1);
+    stream->Write(hello);
+    v1::ServerMessage m;
+    while (stream->Read(&m)) {
+      if (!m.has_task()) continue;
+      v1::WorkerMessage out;
+      v1::TaskResult& r = *out.mutable_result();
+      r.set_task_id(m.task().task_id());
+      r.set_job_id(m.task().job_id());
+      r.set_shard(m.task().shard());
+      for (int k = 0; k < 3; ++k) r.add_gradient(1e6);  // the job has thousands of parameters
+      v1::FloatImage* im = r.add_renders();                // and images nobody asked for
+      im->set_width(100000);
+      im->set_height(100000);
+      im->set_channels(3);
+      stream->Write(out);
+      ++answered_;
+    }
+    stream->Finish();
+  }
+  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  grpc::ClientContext ctx_;
+  std::thread thread_;
+  std::atomic<int> answered_{0};
+};
+
+TEST(Robustness, AWorkerAnsweringWithTheWrongGradientLengthFailsOnlyItsTask) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  FakeWorker fake(c.address());
+  for (int i = 0; i < 200; ++i) {  // connected before the real worker, so it gets a shard
+    grpc::ClientContext ctx;
+    v1::ListWorkersResponse r;
+    if (c.stub().ListWorkers(&ctx, v1::ListWorkersRequest(), &r).ok() && r.workers_size() >= 1) break;
+    std::this_thread::sleep_for(25ms);
+  }
+  // The real worker is asked for by the Cluster, which counts the fake one too.
+  c.startWorker(1);
+  v1::JobSpec job = smallJob("backlit", 3);
+  job.mutable_optimization()->set_shards(2);
+  job.mutable_optimization()->set_target_spp(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_GE(fake.answered(), 1);
+  EXPECT_TRUE(anyMessage(evs, "malformed result (gradient has 3 values, the job has"));
+  // The retry went to the real worker: the numbers are the in-process ones.
+  EXPECT_EQ(c.checkpointTheta(id), inProcess(job));
+  EXPECT_EQ(c.get(id).state(), v1::SUCCEEDED);
+}
+
+TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobCompletes) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  // The heartbeat timeout is long, so only the lease can notice the stall.
+  c.startServer(0, {"--lease-seconds", "3", "--heartbeat-timeout", "120"});
+  pid_t stalled = c.startWorker(1);
+  c.startWorker(1);
+  v1::JobSpec job = smallJob("backlit", 6);
+  job.mutable_optimization()->set_shards(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id, 0, [&](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 2; });
+  kill(stalled, SIGSTOP);
+  auto rest = c.watch(id, evs.back().sequence() + 1);
+  kill(stalled, SIGCONT);
+  evs.insert(evs.end(), rest.begin(), rest.end());
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_TRUE(anyMessage(evs, "expired after 3 s"));
+  // Every step once (the moved shard rebuilds its reservoirs with a burn-in of its own, so the
+  // numbers are not the uninterrupted run's).
+  EXPECT_EQ(stepsOf(evs), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
+  // Resumed, the stalled worker proves alive again and the server serves on.
+  expectHealthy(c);
+}
+
+TEST(Robustness, CancelStopsALongTargetRenderOnTheWorkerWithinASecond) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  // 65536 samples per pixel: the target render alone would take many minutes.
+  v1::JobSpec slow = smallJob("cornell", 2);
+  slow.mutable_optimization()->set_target_spp(65536);
+  std::string slowId;
+  ASSERT_TRUE(c.submit(slow, &slowId).ok());
+  c.watch(slowId, 0, [](const v1::ProgressEvent& e) { return e.has_message() && e.message().rfind("started", 0) == 0; });
+  std::this_thread::sleep_for(1s);  // the worker is inside the target render now
+  auto cancelled = std::chrono::steady_clock::now();
+  const auto cancelledWall = std::chrono::system_clock::now();
+  {
+    grpc::ClientContext ctx;
+    v1::CancelJobRequest req;
+    req.set_job_id(slowId);
+    v1::JobStatus s;
+    ASSERT_TRUE(c.stub().CancelJob(&ctx, req, &s).ok());
+  }
+  // The next job's first task reaches the same worker only once the render has stopped.
+  std::string id;
+  ASSERT_TRUE(c.submit(smallJob("cornell", 2), &id).ok());
+  auto evs = c.watch(id);
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled).count();
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_EQ(c.get(slowId).state(), v1::CANCELLED);
+  // The small job itself takes a few seconds; the abandoned render would have taken minutes.
+  EXPECT_LT(seconds, 30.0);
+  std::ifstream log(c.workerLog(0));
+  std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  size_t at = text.find("of " + slowId + " cancelled");
+  ASSERT_NE(at, std::string::npos) << text;
+  // The worker's log line says when the render stopped: within a second of the cancel.
+  size_t lineStart = text.rfind('\n', at);
+  lineStart = lineStart == std::string::npos ? 0 : lineStart + 1;
+  std::tm tm{};
+  int ms = 0;
+  ASSERT_EQ(std::sscanf(text.c_str() + lineStart, "[%d-%d-%d %d:%d:%d.%d]", &tm.tm_year, &tm.tm_mon, &tm.tm_mday, &tm.tm_hour,
+                        &tm.tm_min, &tm.tm_sec, &ms),
+            7)
+      << text.substr(lineStart, 80);
+  tm.tm_year -= 1900;
+  tm.tm_mon -= 1;
+  tm.tm_isdst = -1;
+  auto stoppedWall = std::chrono::system_clock::from_time_t(std::mktime(&tm)) + std::chrono::milliseconds(ms);
+  double delay = std::chrono::duration<double>(stoppedWall - cancelledWall).count();
+  EXPECT_LT(delay, 1.0) << text.substr(lineStart, 120);
+}
+
+// A worker that answers every task with zeros of the right shape, and once claims to have lost
+// the job's spec: it sees how often the spec travels.
+class ZeroWorker {
+ public:
+  explicit ZeroWorker(const std::string& address) {
+    stub_ = v1::WorkerService::NewStub(wire::channel(address));
+    thread_ = std::thread([this] { run(); });
+  }
+  ~ZeroWorker() {
+    ctx_.TryCancel();
+    thread_.join();
+  }
+  int tasks = 0, withSpec = 0, specUnknownSent = 0;
+  std::mutex mu;
+
+ private:
+  void run() {
+    auto stream = stub_->Connect(&ctx_);
+    v1::WorkerMessage hello;
+    hello.mutable_hello()->set_name("zero");
+    hello.mutable_hello()->set_capacity(1);
+    stream->Write(hello);
+    v1::ServerMessage m;
+    std::map<std::string, std::pair<size_t, std::pair<int, int>>> shapes;  // spec hash -> parameters, film
+    while (stream->Read(&m)) {
+      if (!m.has_task()) continue;
+      const v1::Task& t = m.task();
+      v1::WorkerMessage out;
+      v1::TaskResult& r = *out.mutable_result();
+      r.set_task_id(t.task_id());
+      r.set_job_id(t.job_id());
+      r.set_shard(t.shard());
+      {
+        std::lock_guard<std::mutex> lk(mu);
+        ++tasks;
+        if (t.has_spec()) {
+          ++withSpec;
+          Problem p = buildProblem(t.spec());
+          shapes[t.spec_sha256()] = {p.params.size(), {p.scene->width, p.scene->height}};
+        }
+        // The third task: pretend the spec was dropped (as after an eviction).
+        if (tasks == 3 || !shapes.count(t.spec_sha256())) {
+          shapes.erase(t.spec_sha256());
+          ++specUnknownSent;
+          r.set_spec_unknown(true);
+          stream->Write(out);
+          continue;
+        }
+      }
+      auto [n, film] = shapes[t.spec_sha256()];
+      if (t.kind() == v1::Task::FINAL_RENDER) {
+        for (int k = 0; k < 2 * t.views_size(); ++k) {
+          v1::FloatImage* im = r.add_renders();
+          im->set_width(film.first);
+          im->set_height(film.second);
+          im->set_channels(3);
+          im->mutable_pixels()->Resize(film.first * film.second * 3, 0.f);
+        }
+      } else {
+        r.mutable_gradient()->Resize(int(n), 0.0);
+      }
+      stream->Write(out);
+    }
+    stream->Finish();
+  }
+  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  grpc::ClientContext ctx_;
+  std::thread thread_;
+};
+
+TEST(Robustness, TheJobSpecTravelsOncePerWorkerConnectionAndAgainWhenLost) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  ZeroWorker zero(c.address());
+  std::string id;
+  ASSERT_TRUE(c.submit(smallJob("cornell", 6), &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  std::lock_guard<std::mutex> lk(zero.mu);
+  // 2 burn-in + 6 gradient steps + final render (+ the one answered spec_unknown, sent again).
+  EXPECT_EQ(zero.tasks, 10);
+  EXPECT_EQ(zero.specUnknownSent, 1);
+  EXPECT_EQ(zero.withSpec, 2);  // the first task, and the retry after spec_unknown
+  // A lost spec costs no attempt: nothing failed.
+  EXPECT_FALSE(anyMessage(evs, "failed"));
+}
+
+int freePort() {
+  int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  close(fd);
+  return ntohs(a.sin_port);
+}
+
+int waitExit(pid_t pid, double seconds) {
+  auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  int status = 0;
+  while (std::chrono::steady_clock::now() < end) {
+    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::this_thread::sleep_for(50ms);
+  }
+  kill(pid, SIGKILL);
+  waitpid(pid, &status, 0);
+  return -1;  // still running
+}
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(Robustness, WatchResumesAcrossAServerRestart) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  const int port = freePort();
+  c.startServer(port);
+  c.startWorker(2);
+  v1::JobSpec job = smallJob("backlit", 12);
+  job.mutable_optimization()->set_shards(1);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_step(); });
+  pid_t watcher = spawn({(kBin / "invr").string(), "watch", id, "--server", c.address(), "--json", "--reconnect-timeout", "60"},
+                        tmp.path / "watch.log");
+  std::this_thread::sleep_for(500ms);
+  c.killServer();
+  std::this_thread::sleep_for(4s);  // longer than the old give-up time
+  c.startServer(port);
+  int code = waitExit(watcher, 300);
+  std::string out = readFile(tmp.path / "watch.log");
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("\"state\":\"SUCCEEDED\""), std::string::npos) << out;
+  EXPECT_NE(out.find("server restarted; queued again"), std::string::npos) << out;
+  EXPECT_EQ(c.get(id).state(), v1::SUCCEEDED);
+}
+
+TEST(Robustness, ASecondServerOnTheSamePortOrStoreExitsWithAClearError) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  const int port = c.startServer();
+  pid_t samePort = spawn({(kBin / "invr-server").string(), "--store", (tmp.path / "other-store").string(), "--address",
+                          "127.0.0.1:" + std::to_string(port)},
+                         tmp.path / "second.log");
+  EXPECT_EQ(waitExit(samePort, 20), 1);
+  EXPECT_NE(readFile(tmp.path / "second.log").find("cannot listen on 127.0.0.1:" + std::to_string(port)), std::string::npos)
+      << readFile(tmp.path / "second.log");
+  pid_t sameStore = spawn({(kBin / "invr-server").string(), "--store", c.store().string(), "--address", "127.0.0.1:0"},
+                          tmp.path / "third.log");
+  EXPECT_EQ(waitExit(sameStore, 20), 1);
+  EXPECT_NE(readFile(tmp.path / "third.log").find("is in use by another invr-server"), std::string::npos)
+      << readFile(tmp.path / "third.log");
+  c.startWorker(2);
+  expectHealthy(c);
+}
+
+}  // namespace
+}  // namespace invr
