@@ -44,10 +44,12 @@ Image readImage(const std::filesystem::path& path, bool srgbToLinearConv, Memory
   if (spec.nchannels > 64) throw InputError(name + ": " + std::to_string(spec.nchannels) + " channels (at most 64 are read)");
   int channels = std::min(spec.nchannels, 4);
   const uint64_t pixels = uint64_t(spec.width) * uint64_t(spec.height);
-  if (budget) budget->charge(pixels * uint64_t(channels) * sizeof(float), name);
-  // The decode buffer holds every channel; it lives only during this call.
-  if (pixels * uint64_t(spec.nchannels) * sizeof(float) > (uint64_t(4) << 30))
-    throw ResourceError(name + ": decoding needs " + humanBytes(pixels * uint64_t(spec.nchannels) * sizeof(float)) + " (limit 4 GiB)");
+  // The image kept, and the decode buffer of every channel beside it while this call runs: the
+  // peak is what a budget has to cover.
+  const uint64_t keptBytes = pixels * uint64_t(channels) * sizeof(float);
+  const uint64_t decodeBytes = pixels * uint64_t(spec.nchannels) * sizeof(float);
+  if (budget) budget->charge(keptBytes + decodeBytes, name);
+  if (decodeBytes > (uint64_t(4) << 30)) throw ResourceError(name + ": decoding needs " + humanBytes(decodeBytes) + " (limit 4 GiB)");
   Image img(spec.width, spec.height, channels);
   std::vector<float> all(size_t(pixels) * size_t(spec.nchannels));
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))

@@ -11,8 +11,6 @@
 
 namespace invr {
 
-namespace v1 = invr::v1;
-
 namespace {
 
 std::string lineCol(const std::string& text, size_t offset) {
@@ -69,7 +67,8 @@ invr::v1::JobSpec parseJobJson(const std::string& json, const std::string& sourc
     if (std::regex_search(text, m, std::regex(R"(^\(([^)]*)\) (\w+): Cannot find field\.?)")))
       text = (m[1].str().empty() ? "" : m[1].str() + ".") + m[2].str() + ": unknown field";
     else if (std::regex_search(text, m, std::regex(R"(^\(([^)]*)\): (.*)$)")))
-      text = m[1].str() + ": " + m[2].str();
+      text = m[1].str().empty() ? m[2].str() : m[1].str() + ": " + m[2].str();
+    if (text.rfind(": ", 0) == 0) text = text.substr(2);  // a message about the top level has an empty path
     throw InputError(sourceName + (where.empty() ? "" : ":" + where) + ": " + text);
   }
   validateJobSpec(job);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <array>
 #include <bit>
@@ -374,13 +375,20 @@ TriangleMesh parsePly(const std::string& bytes, const std::string& name) {
   };
   // An index or count: integral, non-negative, below `bound`.
   auto integer = [&](double v, double bound, const std::string& what) -> uint32_t {
-    if (!(v >= 0.0) || v != std::floor(v) || v >= bound) fail(what + " is " + std::to_string(v) + " (must be an integer in 0.." + std::to_string(uint64_t(bound) - 1) + ")");
+    if (!(v >= 0.0) || v != std::floor(v) || v >= bound) {
+      char b[40];
+      std::snprintf(b, sizeof b, "%.10g", v);
+      fail(what + " is " + b + " (must be an integer in 0.." + std::to_string(uint64_t(bound) - 1) + ")");
+    }
     return uint32_t(v);
   };
   TriangleMesh m;
-  uint64_t vertexCount = 0;
-  for (const auto& e : elements)
+  uint64_t vertexCount = 0, faceCount = 0;
+  for (const auto& e : elements) {
     if (e.name == "vertex") vertexCount += e.count;
+    if (e.name == "face") faceCount += e.count;
+  }
+  if (faceCount > 0 && vertexCount == 0) return fail("faces but no vertices (no 'vertex' element, or one of 0 entries)");
   m.positions.reserve(size_t(vertexCount));
   std::vector<uint32_t> poly;
   for (const auto& e : elements) {
@@ -398,7 +406,7 @@ TriangleMesh parsePly(const std::string& bytes, const std::string& name) {
           const bool indices = isFace && (pr.name == "vertex_indices" || pr.name == "vertex_index");
           for (auto& v : poly) {
             double x = readValue(pr.type, what, i);
-            v = indices ? integer(x, double(std::max<uint64_t>(vertexCount, 1)), "face " + std::to_string(i) + ": vertex index") : 0u;
+            v = indices ? integer(x, double(vertexCount), "face " + std::to_string(i) + ": vertex index") : 0u;
           }
           if (indices) {
             if (cnt < 3) fail("face " + std::to_string(i) + " has fewer than 3 vertices");

@@ -205,6 +205,10 @@ TEST(Mesh, PlyIndicesWrongCountsAndTruncationAreNamed) {
                   "unknown property type 'quaternion'"));
   EXPECT_TRUE(has(parseError("ply\nelement vertex 0\nend_header\n", MeshFormat::Ply), "no 'format' line"));
   EXPECT_EQ(parseError(head + "3 0 1 2\n", MeshFormat::Ply).message, "");
+  // Found by fuzz_ply: faces whose indices have no vertices to refer to.
+  EXPECT_TRUE(has(parseError("ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n3 0 0 0\n",
+                             MeshFormat::Ply),
+                  "faces but no vertices"));
 }
 
 // Binary PLYs in both byte orders, with and without normals and uvs, give the same mesh.
