@@ -162,6 +162,9 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
     auto deadline = std::chrono::system_clock::now() + std::chrono::duration_cast<std::chrono::system_clock::duration>(
                                                             std::chrono::duration<double>(reconnectSeconds_));
     bool ready = false;
+    // A short pause first: a server shutting down gracefully can break the stream while the
+    // channel still reads as connected.
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
     while (!interrupted && std::chrono::system_clock::now() < deadline) {
       auto slice = std::min(deadline, std::chrono::system_clock::now() + std::chrono::milliseconds(200));
       if (channel_->WaitForConnected(slice)) {

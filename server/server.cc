@@ -132,11 +132,11 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     WorkerStream* stream = nullptr;  // null once the stream ended
     bool leaving = false;
     Clock::time_point lastSeen;
-    // A worker whose lease expired gets no new lease until it proves alive: a heartbeat after the
-    // expiry that is not still busy with the expired task, or any result.
+    // A worker whose lease expired gets no new lease until it proves alive: a heartbeat that is
+    // idle or busy with a task whose lease did not expire, or any result.
     bool suspect = false;
-    uint64_t suspectTask = 0;
-    std::set<std::string> specsSent;  // spec hashes this connection has received
+    std::set<uint64_t> expiredTasks;
+    std::map<std::string, std::string> specsSent;  // job id -> hash of the spec this connection holds
     bool alive() const { return stream != nullptr; }
     bool eligible() const { return alive() && !leaving && !suspect; }
   };
@@ -322,6 +322,11 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
                                       v1::SubmitJobResponse* resp) override {
     auto* reactor = ctx->DefaultReactor();
+    if (req->request_id().size() > 256) {  // it is stored with the job and kept in memory
+      reactor->Finish(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                   "request_id: " + std::to_string(req->request_id().size()) + " bytes long (limit 256)"));
+      return reactor;
+    }
     {
       std::lock_guard<std::mutex> lk(mu);
       if (!req->request_id().empty()) {
@@ -429,7 +434,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       } else {
         const auto& res = it->second.rec.results();
         if (std::find(res.begin(), res.end(), req->name()) == res.end())
-          st = grpc::Status(grpc::StatusCode::NOT_FOUND, "job " + req->job_id() + " has no result '" + req->name() + "'");
+          st = grpc::Status(grpc::StatusCode::NOT_FOUND, "job " + req->job_id() + " has no result '" + req->name().substr(0, 256) + "'");
         else
           path = jobs.resultsDir(req->job_id()) / req->name();
       }
@@ -468,7 +473,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
   grpc::ServerWriteReactor<v1::AssetChunk>* FetchAsset(grpc::CallbackServerContext*, const v1::FetchAssetRequest* req) override {
     if (!assets.has(req->sha256())) {
       struct Failed final : grpc::ServerWriteReactor<v1::AssetChunk> {
-        explicit Failed(const std::string& h) { Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "no asset " + h)); }
+        explicit Failed(const std::string& h) { Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "no asset " + h.substr(0, 64))); }
         void OnDone() override { delete this; }
       };
       return new Failed(req->sha256());
@@ -507,13 +512,15 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       w->leaving = true;
       spdlog::info("worker {} ({}) is leaving", w->id, w->name);
     } else if (m.has_heartbeat()) {
-      if (w->suspect && m.heartbeat().busy_task() != w->suspectTask) {
+      if (w->suspect && !w->expiredTasks.count(m.heartbeat().busy_task())) {
         w->suspect = false;
+        w->expiredTasks.clear();
         spdlog::info("worker {} ({}) is alive again after its lease expired", w->id, w->name);
       }
     } else if (m.has_result()) {
-      if (w->suspect) {  // it finished (or gave up) the expired task: alive, and free
+      if (w->suspect) {  // it finished (or gave up) an expired task: alive, and free
         w->suspect = false;
+        w->expiredTasks.clear();
         spdlog::info("worker {} ({}) is alive again after its lease expired", w->id, w->name);
       }
       auto it = leases.find(m.result().task_id());
@@ -564,7 +571,8 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
   }
 
   static grpc::Status notFound(const std::string& id) {
-    return grpc::Status(grpc::StatusCode::NOT_FOUND, "no job '" + id + "'");
+    // The id is the caller's: echo a bounded part of it.
+    return grpc::Status(grpc::StatusCode::NOT_FOUND, "no job '" + id.substr(0, 64) + (id.size() > 64 ? "...'" : "'"));
   }
 
   v1::JobStatus status(const JobEntry& j) const {
@@ -619,6 +627,13 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
 
   grpc::Status submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
     v1::JobSpec spec = req.spec();
+    // Fields this server does not know would be stored and sent to every worker unread.
+    spec.DiscardUnknownFields();
+    try {
+      validateJobSpec(spec);  // bounds first: nothing below echoes an unbounded string
+    } catch (const InputError& e) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+    }
     // A server job may only name built-in scenes and uploaded assets: paths on the client's disk
     // mean nothing here (`invr submit` uploads them and rewrites the references).
     std::optional<grpc::Status> bad;
@@ -636,13 +651,13 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     if (!spec.has_optimization() || spec.optimization().parameters_size() == 0)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters: a job needs at least one parameter to recover");
     try {
-      validateJobSpec(spec);
       // Every texture, mesh and target is charged to the job's budget before it is allocated;
       // the problem is dropped again once validated.
       MemoryBudget budget(opt.maxJobBytes);
       Problem p = buildProblem(spec, resolver(&budget));
       WorkerMemory mem = estimateWorkerMemory(p, maxWorkerThreads());
-      budget.charge(uint64_t(mem.images + mem.reservoirs + mem.gradients + mem.textures),
+      const double state = mem.images + mem.reservoirs + mem.gradients + mem.textures;  // may exceed 2^64: compare as double
+      budget.charge(state < double(budget.limit()) ? uint64_t(state) : budget.limit() + 1,
                     "per-worker state (images, reservoirs, gradients of the largest shard, as `invr plan` estimates it)");
     } catch (const ResourceError& e) {
       return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, e.what());
@@ -712,13 +727,15 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     v1::ProgressEvent ev;
     *ev.mutable_final() = status(j);
     publishLocked(j, std::move(ev));
-    // Every watcher gets the final event; release workers' sessions for this job.
-    for (auto& [id, w] : workers)
+    // Every watcher gets the final event; release workers' sessions (and specs) for this job.
+    for (auto& [id, w] : workers) {
+      w.specsSent.erase(j.rec.job_id());
       if (w.stream) {
         v1::ServerMessage m;
         m.set_release_job(j.rec.job_id());
         w.stream->send(std::move(m));
       }
+    }
     cv.notify_all();
   }
 
@@ -826,7 +843,8 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           l.shape = run.shape;
           // The spec travels once per worker connection; later tasks name it by hash.
           WorkerEntry& we = workers[w];
-          if (we.specsSent.insert(run.specHash).second) {
+          if (auto [it, fresh] = we.specsSent.try_emplace(run.id, run.specHash); fresh || it->second != run.specHash) {
+            it->second = run.specHash;
             *t.mutable_spec() = run.spec;
             l.sentSpec = true;
           }
@@ -852,7 +870,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           const WorkerEntry& w = workers[l.worker];
           if (l.done && l.result.spec_unknown() && !l.sentSpec) {
             // The worker lost the spec (it reconnected or dropped it): send it again, no attempt lost.
-            workers[l.worker].specsSent.erase(run.specHash);
+            workers[l.worker].specsSent.erase(run.id);
             dropLease(s);
             all = false;
             continue;
@@ -878,7 +896,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
             if (Clock::now() > l.deadline) {
               WorkerEntry& stalled = workers[l.worker];
               stalled.suspect = true;
-              stalled.suspectTask = l.taskId;
+              stalled.expiredTasks.insert(l.taskId);
               retry(s, "lease on worker " + w.name + " expired after " + fmtSeconds(opt.leaseSeconds) +
                            " (no new lease for it until it shows it is alive)");
             }
@@ -1261,7 +1279,7 @@ int Server::start() {
   std::filesystem::create_directories(impl_->opt.storeDir);
   impl_->storeLock = ::open((impl_->opt.storeDir / "LOCK").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (impl_->storeLock < 0 || ::flock(impl_->storeLock, LOCK_EX | LOCK_NB) != 0)
-    throw std::runtime_error("store '" + impl_->opt.storeDir.string() + "' is in use by another invr-server");
+    throw InputError("store '" + impl_->opt.storeDir.string() + "' is in use by another invr-server");
   impl_->load();
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();

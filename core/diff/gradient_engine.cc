@@ -6,6 +6,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <mutex>
 
@@ -203,6 +204,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
     }
   };
 
+  std::atomic<bool> cancelled{false};
   tbb::parallel_for(tbb::blocked_range<int>(0, tilesX * tilesY), [&](const tbb::blocked_range<int>& range) {
     RayStats rays;
     RestirCounters counters;
@@ -211,6 +213,11 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
     PathGradient pathGrad;
     GradientScratch& scratch = scratch_->local();
     for (int tile = range.begin(); tile < range.end(); ++tile) {
+      // Cancellation is checked per 16x16 tile (TBB's chunks hold many tiles).
+      if (cancelled.load(std::memory_order_relaxed) || (req.cancel && req.cancel->load(std::memory_order_relaxed))) {
+        cancelled = true;
+        break;
+      }
       int tx = tile % tilesX, ty = tile / tilesX;
       for (int y = ty * kTile; y < std::min(H, (ty + 1) * kTile); ++y)
         for (int x = tx * kTile; x < std::min(W, (tx + 1) * kTile); ++x) {
@@ -378,6 +385,7 @@ GradientEngine::PassResult GradientEngine::runPass(int view, int pass, const Gra
     res.restir.shadingPoints += counters.shadingPoints;
     res.restir.sumM += counters.sumM;
   });
+  if (cancelled) throw EvaluationCancelled{};
   if (gradient) {
     for (auto& t : tiles) {  // fixed tile order: deterministic for any thread count
       t.reduceInto(*gradient);

@@ -59,7 +59,8 @@ struct GradientRequest {
   // The request holds every view whose reservoirs live in the session (lets Alg. 8 skip its
   // visibility test); false is always safe.
   bool allSessionViews = false;
-  // Checked between views: when it becomes true, evaluate() throws EvaluationCancelled.
+  // Checked per 16x16 tile of every pass: when it becomes true, evaluate() throws
+  // EvaluationCancelled.
   const std::atomic<bool>* cancel = nullptr;
 };
 

@@ -51,7 +51,8 @@ Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets =
 // Uploaded targets are returned as given.
 std::vector<Image> renderTargets(Problem& problem);
 RenderOptions targetRenderOptions(const Problem& problem);  // how targets are rendered
-// `cancel` (optional) is checked once per pixel: raised, the render throws EvaluationCancelled.
+// `cancel` (optional) is checked every 256 samples of a pixel: raised, the render throws
+// EvaluationCancelled.
 Image renderTarget(Problem& problem, int view, const std::atomic<bool>* cancel = nullptr);
 
 // Root-mean-square difference between theta and the truth.

@@ -2,6 +2,7 @@
 // job may take. Every size a file declares is checked here before anything is allocated for it.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 
@@ -41,6 +42,8 @@ class MemoryBudget {
   explicit MemoryBudget(uint64_t limitBytes = kDefaultBytes) : limit_(limitBytes) {}
   // Throws ResourceError naming `what` and the limit if the charge does not fit.
   void charge(uint64_t bytes, const std::string& what);
+  // Gives back a charge for memory that has been freed again (a parser's working set).
+  void release(uint64_t bytes) { used_ -= std::min(bytes, used_); }
   uint64_t used() const { return used_; }
   uint64_t limit() const { return limit_; }
 

@@ -21,7 +21,8 @@ struct RenderOptions {
   bool risVisibilityInTarget = false;
   int russianRouletteDepth = 3;
   uint64_t seed = 0;
-  // Checked once per pixel: when it becomes true, renderView throws EvaluationCancelled.
+  // Checked every 256 samples of a pixel: when it becomes true, renderView throws
+  // EvaluationCancelled.
   const std::atomic<bool>* cancel = nullptr;
 };
 

@@ -44,16 +44,16 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
     PathContext ctx{&st, recordRays ? &records.local() : nullptr};
     for (int y = r.rows().begin(); y < r.rows().end(); ++y)
       for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
-        // Per pixel: TBB hands out chunks far larger than a tile, and a pixel at high spp is
-        // already milliseconds of work.
-        if (opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
-          cancelled = true;
-          return;
-        }
         double acc[3] = {0, 0, 0};
         uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
         const uint64_t pixelHash = RngKey{opt.seed, 0, uint64_t(view), pixel, 0}.pixelHash();
         for (int s = 0; s < opt.spp; ++s) {
+          // Every 256 samples: TBB hands out chunks far larger than a tile, and one pixel at a
+          // target's spp can be a second of work under a sanitizer.
+          if ((s & 255) == 0 && opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
+            cancelled = true;
+            return;
+          }
           Sampler sampler(RngKey::withSample(pixelHash, uint64_t(s)));
           float fx = float(x) + sampler.next1D(), fy = float(y) + sampler.next1D();
           Rgb L = pathRadiance(scene, cam.eye, cam.direction(fx, fy, W, H), sampler, opt, &ctx);

@@ -173,12 +173,31 @@ TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tub
 
 namespace {
 
+// Reads a string in place: an istringstream would copy a mesh file of up to a gibibyte.
+class MemoryStreamBuf : public std::streambuf {
+ public:
+  explicit MemoryStreamBuf(const std::string& s) {
+    char* p = const_cast<char*>(s.data());  // only ever read
+    setg(p, p, p + s.size());
+  }
+
+ protected:
+  pos_type seekoff(off_type off, std::ios_base::seekdir dir, std::ios_base::openmode which) override {
+    if (which & std::ios_base::out) return pos_type(off_type(-1));
+    char* base = dir == std::ios_base::beg ? eback() : dir == std::ios_base::cur ? gptr() : egptr();
+    if (off < eback() - base || off > egptr() - base) return pos_type(off_type(-1));
+    setg(eback(), base + off, egptr());
+    return pos_type(gptr() - eback());
+  }
+  pos_type seekpos(pos_type pos, std::ios_base::openmode which) override { return seekoff(off_type(pos), std::ios_base::beg, which); }
+};
+
 // tinyobjloader reads "nan" as 0 and "1e999" as infinity without a word: every number of a
 // v/vn/vt line is checked here first, with its line number.
 void checkObjNumbers(const std::string& bytes, const std::string& name) {
   size_t line = 0;
   for (size_t pos = 0; pos < bytes.size();) {
-    size_t end = bytes.find('\n', pos);
+    size_t end = bytes.find_first_of("\n\r", pos);  // tinyobjloader ends a line at either
     if (end == std::string::npos) end = bytes.size();
     ++line;
     const char* p = bytes.data() + pos;
@@ -266,7 +285,8 @@ TriangleMesh parseObj(const std::string& bytes, const std::string& name) {
 // elements are read and skipped. Counts the header declares are checked against the limits and
 // against the bytes the file holds before anything is reserved for them.
 TriangleMesh parsePly(const std::string& bytes, const std::string& name) {
-  std::istringstream in(bytes);
+  MemoryStreamBuf buffer(bytes);
+  std::istream in(&buffer);
   auto fail = [&](const std::string& why) -> TriangleMesh { throw InputError("mesh '" + name + "': " + why); };
   const InputLimits& lim = inputLimits();
   std::string line;
@@ -344,11 +364,14 @@ TriangleMesh parsePly(const std::string& bytes, const std::string& name) {
   // count the file cannot hold is an error before anything is reserved for it.
   uint64_t remaining = uint64_t(bytes.size()) - uint64_t(std::max<std::streamoff>(0, in.tellg()));
   for (const auto& e : elements) {
+    if (e.count == 0) continue;
+    if (e.props.empty()) return fail("element '" + e.name + "' has entries but no properties");
     uint64_t minBytes = 0;
     for (const auto& pr : e.props) minBytes += fmt == Fmt::Ascii ? 2 : typeSize(pr.list ? pr.countType : pr.type);
-    if (minBytes > 0 && e.count > remaining / minBytes)
+    if (e.count > remaining / minBytes)
       return fail("element '" + e.name + "' declares " + std::to_string(e.count) + " entries, but the file holds at most " +
                   std::to_string(remaining / minBytes) + " (truncated?)");
+    remaining -= e.count * minBytes;  // the elements follow one another
   }
   auto readValue = [&](const std::string& t, const char* what, uint64_t i) -> double {
     if (fmt == Fmt::Ascii) {
@@ -389,6 +412,8 @@ TriangleMesh parsePly(const std::string& bytes, const std::string& name) {
     if (e.name == "face") faceCount += e.count;
   }
   if (faceCount > 0 && vertexCount == 0) return fail("faces but no vertices (no 'vertex' element, or one of 0 entries)");
+  if (vertexCount > lim.maxMeshVertices)
+    throw ResourceError("mesh '" + name + "': " + std::to_string(vertexCount) + " vertices (limit " + std::to_string(lim.maxMeshVertices) + ")");
   m.positions.reserve(size_t(vertexCount));
   std::vector<uint32_t> poly;
   for (const auto& e : elements) {
@@ -443,7 +468,7 @@ TriangleMesh parseMesh(const std::string& bytes, MeshFormat format, const std::s
   return format == MeshFormat::Ply ? parsePly(bytes, name) : parseObj(bytes, name);
 }
 
-TriangleMesh loadMesh(const std::filesystem::path& path) {
+TriangleMesh loadMesh(const std::filesystem::path& path, MemoryBudget* budget) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw InputError("mesh '" + path.string() + "': file not found");
   std::string ext = path.extension().string();
@@ -455,11 +480,21 @@ TriangleMesh loadMesh(const std::filesystem::path& path) {
   if (size > inputLimits().maxFileBytes)
     throw ResourceError("mesh '" + path.string() + "': " + humanBytes(size) + " (limit " + humanBytes(inputLimits().maxFileBytes) + ")");
   std::ifstream in(path, std::ios::binary);
+  char magic[4] = {0, 0, 0, 0};
+  in.read(magic, 3);
+  in.seekg(0);
+  // Content-addressed assets have no extension: PLY files say so in their first line.
+  MeshFormat f = ext == ".ply" || (ext.empty() && std::string(magic) == "ply") ? MeshFormat::Ply : MeshFormat::Obj;
+  // Reading and parsing take a multiple of the file's size at their peak (the bytes, the parser's
+  // arrays, OBJ's vertex map): charged before reading, released once the mesh stands (the caller
+  // charges what it keeps).
+  const uint64_t peak = size * (f == MeshFormat::Obj ? 8 : 4);
+  if (budget) budget->charge(peak, "mesh '" + path.string() + "' (reading " + humanBytes(size) + ")");
   std::string bytes(size_t(size), '\0');
   if (!in.read(bytes.data(), std::streamsize(size))) throw InputError("mesh '" + path.string() + "': cannot read");
-  // Content-addressed assets have no extension: PLY files say so in their first line.
-  MeshFormat f = ext == ".ply" || (ext.empty() && bytes.rfind("ply", 0) == 0) ? MeshFormat::Ply : MeshFormat::Obj;
-  return parseMesh(bytes, f, path.string());
+  TriangleMesh m = parseMesh(bytes, f, path.string());
+  if (budget) budget->release(peak);
+  return m;
 }
 
 size_t validateMesh(TriangleMesh& mesh, const std::string& what) {

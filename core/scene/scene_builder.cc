@@ -169,7 +169,7 @@ void chargeMesh(const AssetResolver& assets, uint64_t vertices, uint64_t triangl
 TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const std::string& field) {
   switch (s.geometry_case()) {
     case v1::Shape::kMesh: {
-      TriangleMesh m = loadMesh(assets.resolve(s.mesh(), field + ".mesh"));
+      TriangleMesh m = loadMesh(assets.resolve(s.mesh(), field + ".mesh"), assets.budget);
       chargeMesh(assets, m.positions.size(), m.triangleCount(), field + ".mesh");
       return m;
     }
@@ -209,8 +209,10 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
 
   int w = spec.film().width() > 0 ? spec.film().width() : 256;
   int h = spec.film().height() > 0 ? spec.film().height() : w;
-  if (spec.film().width() < 0 || spec.film().height() < 0 || w > 16384 || h > 16384)
-    fail(root + ".film", "width and height must be in 1..16384");
+  if (spec.film().width() < 0 || spec.film().height() < 0) fail(root + ".film", "width and height must be positive");
+  if (w > inputLimits().maxImageSide || h > inputLimits().maxImageSide)
+    throw ResourceError(root + ".film: " + std::to_string(w) + "x" + std::to_string(h) + " pixels (limit " +
+                        std::to_string(inputLimits().maxImageSide) + " per side)");
   scene->width = w;
   scene->height = h;
 

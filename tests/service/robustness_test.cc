@@ -9,12 +9,14 @@
 #include <cstdio>
 #include <ctime>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <mutex>
 
 #include "core/diff/problem.h"
 #include "core/scene/zoo.h"
 #include "tests/service/cluster.h"
+#include "tests/test_util.h"
 
 namespace invr {
 namespace {
@@ -39,29 +41,6 @@ v1::JobSpec inlineCornell() {
   v1::JobSpec job = smallJob("cornell", 2);
   *job.mutable_scene() = zooScene("cornell");
   return job;
-}
-
-uint32_t crc32(const std::string& bytes) {
-  uint32_t c = 0xffffffffu;
-  for (unsigned char b : bytes) {
-    c ^= b;
-    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
-  }
-  return ~c;
-}
-
-std::string bigEndian(uint32_t v) {
-  return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)};
-}
-
-// A PNG whose header declares w x h pixels (8-bit RGB) followed by 4 bytes of pixel data: a
-// reader that trusts the header allocates w x h first.
-std::string pngHeaderOnly(uint32_t w, uint32_t h) {
-  std::string ihdr = "IHDR" + bigEndian(w) + bigEndian(h) + std::string{8, 2, 0, 0, 0};
-  std::string idat = "IDAT" + std::string("\x78\x9c\x00\x00", 4);
-  std::string iend = "IEND";
-  return std::string("\x89PNG\r\n\x1a\n", 8) + bigEndian(13) + ihdr + bigEndian(crc32(ihdr)) + bigEndian(4) + idat +
-         bigEndian(crc32(idat)) + bigEndian(0) + iend + bigEndian(crc32(iend));
 }
 
 grpc::Status submitWith(Cluster& c, const v1::JobSpec& job) { return c.submit(job, nullptr); }
@@ -103,7 +82,7 @@ TEST(Robustness, MalformedFilesOversizedHeadersAndBadEnumsAreRefusedAndTheServer
   {
     v1::JobSpec job = inlineCornell();
     job.mutable_scene()->mutable_materials(0)->mutable_diffuse()->mutable_albedo()->mutable_image()->set_sha256(
-        c.upload(pngHeaderOnly(30000, 30000)));
+        c.upload(pngDeclaringSize(30000, 30000)));
     st = submitWith(c, job);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
     EXPECT_NE(st.error_message().find("30000x30000 pixels (limit 16384 per side)"), std::string::npos) << st.error_message();
@@ -112,7 +91,7 @@ TEST(Robustness, MalformedFilesOversizedHeadersAndBadEnumsAreRefusedAndTheServer
   // The same as a target image.
   {
     v1::JobSpec job = smallJob("cornell", 2);
-    job.mutable_optimization()->add_targets()->set_sha256(c.upload(pngHeaderOnly(30000, 30000)));
+    job.mutable_optimization()->add_targets()->set_sha256(c.upload(pngDeclaringSize(30000, 30000)));
     st = submitWith(c, job);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
     EXPECT_NE(st.error_message().find("optimization.targets[0]"), std::string::npos) << st.error_message();
@@ -155,26 +134,45 @@ TEST(Robustness, MalformedFilesOversizedHeadersAndBadEnumsAreRefusedAndTheServer
   expectHealthy(c);
 }
 
-// A worker that dials in and answers every task with a result of the wrong shape.
-class FakeWorker {
+// A worker of the test's own: it dials in and answers every task with what `answer` writes into
+// the result (identity fields already set). When `answer` returns false the worker sends nothing
+// and stays busy with that task; with `heartbeats` it says so every 200 ms, as a real worker's
+// heartbeat thread does while its computation hangs.
+class ScriptedWorker {
  public:
-  explicit FakeWorker(const std::string& address) {
+  using Answer = std::function<bool(const v1::Task&, v1::TaskResult&)>;
+  ScriptedWorker(const std::string& address, std::string name, Answer answer, bool heartbeats = false)
+      : name_(std::move(name)), answer_(std::move(answer)), heartbeats_(heartbeats) {
     stub_ = v1::WorkerService::NewStub(wire::channel(address));
     thread_ = std::thread([this] { run(); });
   }
-  ~FakeWorker() {
+  ~ScriptedWorker() {
+    stop_ = true;
     ctx_.TryCancel();
     thread_.join();
   }
-  int answered() const { return answered_; }
 
  private:
   void run() {
     auto stream = stub_->Connect(&ctx_);
+    auto write = [&](const v1::WorkerMessage& m) {
+      std::lock_guard<std::mutex> lk(writeMu_);
+      return stream->Write(m);
+    };
     v1::WorkerMessage hello;
-    hello.mutable_hello()->set_name("fake");
+    hello.mutable_hello()->set_name(name_);
     hello.mutable_hello()->set_capacity(1);
-    stream->Write(hello);
+    write(hello);
+    std::thread heart;
+    if (heartbeats_)
+      heart = std::thread([&] {
+        while (!stop_) {
+          v1::WorkerMessage hb;
+          hb.mutable_heartbeat()->set_busy_task(busy_.load());
+          if (!write(hb)) break;
+          std::this_thread::sleep_for(200ms);
+        }
+      });
     v1::ServerMessage m;
     while (stream->Read(&m)) {
       if (!m.has_task()) continue;
@@ -183,27 +181,43 @@ class FakeWorker {
       r.set_task_id(m.task().task_id());
       r.set_job_id(m.task().job_id());
       r.set_shard(m.task().shard());
-      for (int k = 0; k < 3; ++k) r.add_gradient(1e6);  // the job has thousands of parameters
-      v1::FloatImage* im = r.add_renders();                // and images nobody asked for
-      im->set_width(100000);
-      im->set_height(100000);
-      im->set_channels(3);
-      stream->Write(out);
-      ++answered_;
+      const bool reply = answer_(m.task(), r);  // called for every task, so tests can count them
+      if (busy_) continue;                       // hung: it never answers again
+      if (reply)
+        write(out);
+      else
+        busy_ = m.task().task_id();
     }
+    stop_ = true;
+    if (heart.joinable()) heart.join();
     stream->Finish();
   }
+  std::string name_;
+  Answer answer_;
+  bool heartbeats_;
+  std::atomic<bool> stop_{false};
+  std::atomic<uint64_t> busy_{0};
+  std::mutex writeMu_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
   grpc::ClientContext ctx_;
   std::thread thread_;
-  std::atomic<int> answered_{0};
 };
 
 TEST(Robustness, AWorkerAnsweringWithTheWrongGradientLengthFailsOnlyItsTask) {
   TempDir tmp;
   Cluster c(tmp.path);
   c.startServer();
-  FakeWorker fake(c.address());
+  std::atomic<int> answered{0};
+  // Three gradient values where the job has thousands, and images nobody asked for.
+  ScriptedWorker fake(c.address(), "fake", [&](const v1::Task&, v1::TaskResult& r) {
+    for (int k = 0; k < 3; ++k) r.add_gradient(1e6);
+    v1::FloatImage* im = r.add_renders();
+    im->set_width(100000);
+    im->set_height(100000);
+    im->set_channels(3);
+    ++answered;
+    return true;
+  });
   for (int i = 0; i < 200; ++i) {  // connected before the real worker, so it gets a shard
     grpc::ClientContext ctx;
     v1::ListWorkersResponse r;
@@ -220,7 +234,7 @@ TEST(Robustness, AWorkerAnsweringWithTheWrongGradientLengthFailsOnlyItsTask) {
   auto evs = c.watch(id);
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-  EXPECT_GE(fake.answered(), 1);
+  EXPECT_GE(answered.load(), 1);
   EXPECT_TRUE(anyMessage(evs, "malformed result (gradient has 3 values, the job has"));
   // The retry went to the real worker: the numbers are the in-process ones.
   EXPECT_EQ(c.checkpointTheta(id), inProcess(job));
@@ -230,8 +244,9 @@ TEST(Robustness, AWorkerAnsweringWithTheWrongGradientLengthFailsOnlyItsTask) {
 TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobCompletes) {
   TempDir tmp;
   Cluster c(tmp.path);
-  // The heartbeat timeout is long, so only the lease can notice the stall.
-  c.startServer(0, {"--lease-seconds", "3", "--heartbeat-timeout", "120"});
+  // The heartbeat timeout is long, so only the lease can notice the stall. The lease covers a
+  // healthy worker's longest task (building a moved shard's session) even under sanitizers.
+  c.startServer(0, {"--lease-seconds", "12", "--heartbeat-timeout", "120"});
   pid_t stalled = c.startWorker(1);
   c.startWorker(1);
   v1::JobSpec job = smallJob("backlit", 6);
@@ -245,12 +260,43 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
   evs.insert(evs.end(), rest.begin(), rest.end());
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-  EXPECT_TRUE(anyMessage(evs, "expired after 3 s"));
+  EXPECT_TRUE(anyMessage(evs, "expired after 12 s"));
   // Every step once (the moved shard rebuilds its reservoirs with a burn-in of its own, so the
   // numbers are not the uninterrupted run's).
   EXPECT_EQ(stepsOf(evs), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
   // Resumed, the stalled worker proves alive again and the server serves on.
   expectHealthy(c);
+}
+
+TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer(0, {"--lease-seconds", "12", "--heartbeat-timeout", "120"});
+  std::atomic<int> received{0};
+  // Connected first, so it gets a shard; it never answers, and its heartbeats say it is busy.
+  ScriptedWorker hung(
+      c.address(), "hung", [&](const v1::Task&, v1::TaskResult&) {
+        ++received;
+        return false;
+      },
+      true);
+  for (int i = 0; i < 200; ++i) {
+    grpc::ClientContext ctx;
+    v1::ListWorkersResponse r;
+    if (c.stub().ListWorkers(&ctx, v1::ListWorkersRequest(), &r).ok() && r.workers_size() >= 1) break;
+    std::this_thread::sleep_for(25ms);
+  }
+  c.startWorker(1);
+  v1::JobSpec job = smallJob("backlit", 3);
+  job.mutable_optimization()->set_shards(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_TRUE(anyMessage(evs, "lease on worker hung expired after 12 s"));
+  // Its heartbeats never showed it free, so it never got a second lease.
+  EXPECT_EQ(received.load(), 1);
 }
 
 TEST(Robustness, CancelStopsALongTargetRenderOnTheWorkerWithinASecond) {
@@ -305,91 +351,53 @@ TEST(Robustness, CancelStopsALongTargetRenderOnTheWorkerWithinASecond) {
   EXPECT_LT(delay, 1.0) << text.substr(lineStart, 120);
 }
 
-// A worker that answers every task with zeros of the right shape, and once claims to have lost
-// the job's spec: it sees how often the spec travels.
-class ZeroWorker {
- public:
-  explicit ZeroWorker(const std::string& address) {
-    stub_ = v1::WorkerService::NewStub(wire::channel(address));
-    thread_ = std::thread([this] { run(); });
-  }
-  ~ZeroWorker() {
-    ctx_.TryCancel();
-    thread_.join();
-  }
-  int tasks = 0, withSpec = 0, specUnknownSent = 0;
-  std::mutex mu;
-
- private:
-  void run() {
-    auto stream = stub_->Connect(&ctx_);
-    v1::WorkerMessage hello;
-    hello.mutable_hello()->set_name("zero");
-    hello.mutable_hello()->set_capacity(1);
-    stream->Write(hello);
-    v1::ServerMessage m;
-    std::map<std::string, std::pair<size_t, std::pair<int, int>>> shapes;  // spec hash -> parameters, film
-    while (stream->Read(&m)) {
-      if (!m.has_task()) continue;
-      const v1::Task& t = m.task();
-      v1::WorkerMessage out;
-      v1::TaskResult& r = *out.mutable_result();
-      r.set_task_id(t.task_id());
-      r.set_job_id(t.job_id());
-      r.set_shard(t.shard());
-      {
-        std::lock_guard<std::mutex> lk(mu);
-        ++tasks;
-        if (t.has_spec()) {
-          ++withSpec;
-          Problem p = buildProblem(t.spec());
-          shapes[t.spec_sha256()] = {p.params.size(), {p.scene->width, p.scene->height}};
-        }
-        // The third task: pretend the spec was dropped (as after an eviction).
-        if (tasks == 3 || !shapes.count(t.spec_sha256())) {
-          shapes.erase(t.spec_sha256());
-          ++specUnknownSent;
-          r.set_spec_unknown(true);
-          stream->Write(out);
-          continue;
-        }
-      }
-      auto [n, film] = shapes[t.spec_sha256()];
-      if (t.kind() == v1::Task::FINAL_RENDER) {
-        for (int k = 0; k < 2 * t.views_size(); ++k) {
-          v1::FloatImage* im = r.add_renders();
-          im->set_width(film.first);
-          im->set_height(film.second);
-          im->set_channels(3);
-          im->mutable_pixels()->Resize(film.first * film.second * 3, 0.f);
-        }
-      } else {
-        r.mutable_gradient()->Resize(int(n), 0.0);
-      }
-      stream->Write(out);
-    }
-    stream->Finish();
-  }
-  std::unique_ptr<v1::WorkerService::Stub> stub_;
-  grpc::ClientContext ctx_;
-  std::thread thread_;
-};
-
 TEST(Robustness, TheJobSpecTravelsOncePerWorkerConnectionAndAgainWhenLost) {
   TempDir tmp;
   Cluster c(tmp.path);
   c.startServer();
-  ZeroWorker zero(c.address());
+  // Answers every task with zeros of the right shape, and once claims to have lost the spec (as
+  // after an eviction): it sees how often the spec travels.
+  std::mutex mu;
+  int tasks = 0, withSpec = 0, specUnknownSent = 0;
+  std::map<std::string, std::pair<size_t, std::pair<int, int>>> shapes;  // spec hash -> parameters, film
+  ScriptedWorker zero(c.address(), "zero", [&](const v1::Task& t, v1::TaskResult& r) {
+    std::lock_guard<std::mutex> lk(mu);
+    ++tasks;
+    if (t.has_spec()) {
+      ++withSpec;
+      Problem p = buildProblem(t.spec());
+      shapes[t.spec_sha256()] = {p.params.size(), {p.scene->width, p.scene->height}};
+    }
+    if (tasks == 3 || !shapes.count(t.spec_sha256())) {
+      shapes.erase(t.spec_sha256());
+      ++specUnknownSent;
+      r.set_spec_unknown(true);
+      return true;
+    }
+    auto [n, film] = shapes[t.spec_sha256()];
+    if (t.kind() == v1::Task::FINAL_RENDER) {
+      for (int k = 0; k < 2 * t.views_size(); ++k) {
+        v1::FloatImage* im = r.add_renders();
+        im->set_width(film.first);
+        im->set_height(film.second);
+        im->set_channels(3);
+        im->mutable_pixels()->Resize(film.first * film.second * 3, 0.f);
+      }
+    } else {
+      r.mutable_gradient()->Resize(int(n), 0.0);
+    }
+    return true;
+  });
   std::string id;
   ASSERT_TRUE(c.submit(smallJob("cornell", 6), &id).ok());
   auto evs = c.watch(id);
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-  std::lock_guard<std::mutex> lk(zero.mu);
+  std::lock_guard<std::mutex> lk(mu);
   // 2 burn-in + 6 gradient steps + final render (+ the one answered spec_unknown, sent again).
-  EXPECT_EQ(zero.tasks, 10);
-  EXPECT_EQ(zero.specUnknownSent, 1);
-  EXPECT_EQ(zero.withSpec, 2);  // the first task, and the retry after spec_unknown
+  EXPECT_EQ(tasks, 10);
+  EXPECT_EQ(specUnknownSent, 1);
+  EXPECT_EQ(withSpec, 2);  // the first task, and the retry after spec_unknown
   // A lost spec costs no attempt: nothing failed.
   EXPECT_FALSE(anyMessage(evs, "failed"));
 }
@@ -439,7 +447,7 @@ TEST(Robustness, WatchResumesAcrossAServerRestart) {
                         tmp.path / "watch.log");
   std::this_thread::sleep_for(500ms);
   c.killServer();
-  std::this_thread::sleep_for(4s);  // longer than the old give-up time
+  std::this_thread::sleep_for(12s);  // longer than any retry budget the old client had (about 10 s)
   c.startServer(port);
   int code = waitExit(watcher, 300);
   std::string out = readFile(tmp.path / "watch.log");
@@ -447,6 +455,14 @@ TEST(Robustness, WatchResumesAcrossAServerRestart) {
   EXPECT_NE(out.find("\"state\":\"SUCCEEDED\""), std::string::npos) << out;
   EXPECT_NE(out.find("server restarted; queued again"), std::string::npos) << out;
   EXPECT_EQ(c.get(id).state(), v1::SUCCEEDED);
+  // With the server gone for good, watch gives up after --reconnect-timeout, saying how to resume.
+  c.killServer();
+  pid_t giveUp = spawn({(kBin / "invr").string(), "watch", id, "--server", c.address(), "--from", "3", "--reconnect-timeout", "2"},
+                       tmp.path / "giveup.log");
+  EXPECT_EQ(waitExit(giveUp, 30), 5);
+  std::string said = readFile(tmp.path / "giveup.log");
+  EXPECT_NE(said.find("server unavailable for 2 s"), std::string::npos) << said;
+  EXPECT_NE(said.find("invr watch " + id + " --from 3"), std::string::npos) << said;
 }
 
 TEST(Robustness, ASecondServerOnTheSamePortOrStoreExitsWithAClearError) {

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/io/limits.h"
+#include "tests/test_util.h"
 
 namespace invr {
 namespace {
@@ -86,25 +87,8 @@ TEST(ImageIO, ErrorsNameTheFile) {
   EXPECT_THROW(writeImage(tmp("x.bmpx"), gradient(2, 2)), InputError);
 }
 
-uint32_t crc32(const std::string& bytes) {
-  uint32_t c = 0xffffffffu;
-  for (unsigned char b : bytes) {
-    c ^= b;
-    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
-  }
-  return ~c;
-}
-
-std::string bigEndian(uint32_t v) { return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)}; }
-
-// A PNG header declaring w x h RGB pixels, followed by a few bytes of (not decodable) pixel data:
-// readers learn the size before they reach it.
 void writePngHeader(const std::filesystem::path& p, uint32_t w, uint32_t h) {
-  std::string ihdr = "IHDR" + bigEndian(w) + bigEndian(h) + std::string{8, 2, 0, 0, 0};
-  std::string idat = "IDAT" + std::string("\x78\x9c\x00\x00", 4);
-  std::string iend = "IEND";
-  std::ofstream(p, std::ios::binary) << std::string("\x89PNG\r\n\x1a\n", 8) << bigEndian(13) << ihdr << bigEndian(crc32(ihdr))
-                                     << bigEndian(4) << idat << bigEndian(crc32(idat)) << bigEndian(0) << iend << bigEndian(crc32(iend));
+  std::ofstream(p, std::ios::binary) << test::pngDeclaringSize(w, h);
 }
 
 TEST(ImageIO, OversizedHeadersAreRefusedBeforeAllocating) {

@@ -242,6 +242,39 @@ TEST(Mesh, PlyBinaryBothEndiansWithAndWithoutAttributes) {
     }
 }
 
+TEST(Mesh, PlyElementsMustFitTheFileTogether) {
+  // Elements without properties would be read from no bytes at all, however many they declare.
+  auto e = parseError("ply\nformat ascii 1.0\nelement foo 67108864\nend_header\n", MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "element 'foo' has entries but no properties")) << e.message;
+  // Each element alone fits in what follows the header; both together do not.
+  std::string two = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                    "element extra 3\nproperty double w\nend_header\n" + std::string(36, '\0');
+  e = parseError(two, MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "element 'extra' declares 3 entries, but the file holds at most 0")) << e.message;
+  // Vertex elements together within the vertex limit.
+  std::string many = "ply\nformat ascii 1.0\n";
+  for (int k = 0; k < 3; ++k) many += "element vertex 30000000\nproperty uchar x\n";
+  e = parseError(many + "end_header\n" + std::string(200000000, '0'), MeshFormat::Ply);
+  EXPECT_TRUE(e.limit) << e.message;
+  EXPECT_TRUE(has(e, "90000000 vertices (limit 67108864)")) << e.message;
+}
+
+TEST(Mesh, ObjLinesEndingInCarriageReturnsAreCheckedToo) {
+  // tinyobjloader ends a line at a lone '\r' as well.
+  EXPECT_TRUE(has(parseError("o x\rv nan 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r", MeshFormat::Obj), "line 2: 'nan' is not a finite number"));
+}
+
+TEST(Mesh, ReadingAMeshIsChargedToTheBudgetBeforeTheFileIsRead) {
+  std::ofstream(tmp("budget.obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  MemoryBudget tight(100);  // the file is 32 bytes; reading and parsing an OBJ is charged 8x that
+  EXPECT_THROW(loadMesh(tmp("budget.obj"), &tight), ResourceError);
+  EXPECT_EQ(tight.used(), 0u);
+  MemoryBudget roomy(1000);
+  TriangleMesh m = loadMesh(tmp("budget.obj"), &roomy);
+  EXPECT_EQ(m.triangleCount(), 1u);
+  EXPECT_EQ(roomy.used(), 0u);  // the working set is given back; the caller charges what it keeps
+}
+
 TEST(Mesh, AttributeArraysMustMatchThePositions) {
   TriangleMesh m = makeQuad();
   m.normals.assign(3, Vec3(0, 0, 1));
