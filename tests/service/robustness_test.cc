@@ -45,6 +45,17 @@ v1::JobSpec inlineCornell() {
 
 grpc::Status submitWith(Cluster& c, const v1::JobSpec& job) { return c.submit(job, nullptr); }
 
+// Until the server counts n connected workers (the Cluster's own and the test's scripted ones).
+void waitForWorkers(Cluster& c, int n) {
+  for (int i = 0; i < 400; ++i) {
+    grpc::ClientContext ctx;
+    v1::ListWorkersResponse r;
+    if (c.stub().ListWorkers(&ctx, v1::ListWorkersRequest(), &r).ok() && r.workers_size() >= n) return;
+    std::this_thread::sleep_for(25ms);
+  }
+  FAIL() << "fewer than " << n << " workers connected";
+}
+
 TEST(Robustness, MalformedFilesOversizedHeadersAndBadEnumsAreRefusedAndTheServerKeepsServing) {
   TempDir tmp;
   Cluster c(tmp.path);
@@ -218,14 +229,9 @@ TEST(Robustness, AWorkerAnsweringWithTheWrongGradientLengthFailsOnlyItsTask) {
     ++answered;
     return true;
   });
-  for (int i = 0; i < 200; ++i) {  // connected before the real worker, so it gets a shard
-    grpc::ClientContext ctx;
-    v1::ListWorkersResponse r;
-    if (c.stub().ListWorkers(&ctx, v1::ListWorkersRequest(), &r).ok() && r.workers_size() >= 1) break;
-    std::this_thread::sleep_for(25ms);
-  }
-  // The real worker is asked for by the Cluster, which counts the fake one too.
+  waitForWorkers(c, 1);  // connected before the real worker, so it gets a shard
   c.startWorker(1);
+  waitForWorkers(c, 2);
   v1::JobSpec job = smallJob("backlit", 3);
   job.mutable_optimization()->set_shards(2);
   job.mutable_optimization()->set_target_spp(2);
@@ -280,13 +286,9 @@ TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
         return false;
       },
       true);
-  for (int i = 0; i < 200; ++i) {
-    grpc::ClientContext ctx;
-    v1::ListWorkersResponse r;
-    if (c.stub().ListWorkers(&ctx, v1::ListWorkersRequest(), &r).ok() && r.workers_size() >= 1) break;
-    std::this_thread::sleep_for(25ms);
-  }
+  waitForWorkers(c, 1);
   c.startWorker(1);
+  waitForWorkers(c, 2);
   v1::JobSpec job = smallJob("backlit", 3);
   job.mutable_optimization()->set_shards(2);
   std::string id;
@@ -311,7 +313,6 @@ TEST(Robustness, CancelStopsALongTargetRenderOnTheWorkerWithinASecond) {
   ASSERT_TRUE(c.submit(slow, &slowId).ok());
   c.watch(slowId, 0, [](const v1::ProgressEvent& e) { return e.has_message() && e.message().rfind("started", 0) == 0; });
   std::this_thread::sleep_for(1s);  // the worker is inside the target render now
-  auto cancelled = std::chrono::steady_clock::now();
   const auto cancelledWall = std::chrono::system_clock::now();
   {
     grpc::ClientContext ctx;
@@ -324,17 +325,15 @@ TEST(Robustness, CancelStopsALongTargetRenderOnTheWorkerWithinASecond) {
   std::string id;
   ASSERT_TRUE(c.submit(smallJob("cornell", 2), &id).ok());
   auto evs = c.watch(id);
-  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled).count();
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
   EXPECT_EQ(c.get(slowId).state(), v1::CANCELLED);
-  // The small job itself takes a few seconds; the abandoned render would have taken minutes.
-  EXPECT_LT(seconds, 30.0);
   std::ifstream log(c.workerLog(0));
   std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   size_t at = text.find("of " + slowId + " cancelled");
   ASSERT_NE(at, std::string::npos) << text;
-  // The worker's log line says when the render stopped: within a second of the cancel.
+  // The worker's log line says when the render stopped: within a second of the cancel, as the
+  // service promises (the render it abandoned would have taken many minutes).
   size_t lineStart = text.rfind('\n', at);
   lineStart = lineStart == std::string::npos ? 0 : lineStart + 1;
   std::tm tm{};
