@@ -32,6 +32,7 @@ Setup makeSetup(const std::string& scene, int targetSpp) {
   job.mutable_optimization()->set_target_spp(targetSpp);
   Setup s{buildProblem(job), {}};
   s.targets = renderTargets(s.problem);
+  s.problem.params.write(s.problem.initial, *s.problem.scene);  // every evaluation here is at the start
   return s;
 }
 
@@ -53,13 +54,13 @@ double stepSeconds(Setup& s, GradientMethod m, int spp, int burnIn) {
     GradientRequest rb = r;
     rb.renderOnly = true;
     rb.step = uint64_t(b);
-    engine.evaluate(s.problem.initial, rb, session);
+    engine.evaluate(rb, session);
   }
   std::vector<double> t;
   for (int i = 0; i < 4; ++i) {
     r.step = uint64_t(burnIn + i);
     auto t0 = Clock::now();
-    engine.evaluate(s.problem.initial, r, session);
+    engine.evaluate(r, session);
     if (i > 0) t.push_back(since(t0));
   }
   std::sort(t.begin(), t.end());
@@ -98,11 +99,11 @@ BenchReport benchGradients(const GradientsArgs& a) {
       GradientRequest rb = r;
       rb.renderOnly = true;
       rb.step = uint64_t(b);
-      engine.evaluate(s.problem.initial, rb, session);
+      engine.evaluate(rb, session);
     }
     for (int i = 0; i < a.refEvaluations; ++i) {
       r.step = uint64_t(a.burnIn + i);
-      auto g = engine.evaluate(s.problem.initial, r, session).gradient;
+      auto g = engine.evaluate(r, session).gradient;
       for (size_t k = 0; k < g.size(); ++k) {
         ref[k] += g[k] / a.refEvaluations;
         if (i < a.refEvaluations / 2) half[k] += g[k] / (a.refEvaluations / 2);
@@ -147,13 +148,13 @@ BenchReport benchGradients(const GradientsArgs& a) {
         GradientRequest rb = r;
         rb.renderOnly = true;
         rb.step = uint64_t(b);
-        engine.evaluate(s.problem.initial, rb, session);
+        engine.evaluate(rb, session);
       }
       double groupErr = 0;
       for (int i = 0; i < perChain; ++i) {
         r.step = uint64_t(burn + i);
         auto t0 = Clock::now();
-        auto g = engine.evaluate(s.problem.initial, r, session).gradient;
+        auto g = engine.evaluate(r, session).gradient;
         secs += since(t0);
         ++evaluations;
         groupErr += relativeSquaredError(g, ref) / perChain;
@@ -222,14 +223,14 @@ BenchReport benchOverhead(const OverheadArgs& a) {
   for (int b = 0; b < 4; ++b) {
     r.step = uint64_t(b);
     r.renderOnly = true;
-    for (size_t k = 1; k < v.size(); ++k) engines[k]->evaluate(s.problem.initial, r, v[k].session);
+    for (size_t k = 1; k < v.size(); ++k) engines[k]->evaluate(r, v[k].session);
   }
   r.renderOnly = false;
   for (int i = 0; i < a.steps; ++i) {
     r.step = uint64_t(4 + i);
     for (size_t k = 0; k < v.size(); ++k) {
       auto t0 = Clock::now();
-      GradientStats st = engines[k]->evaluate(s.problem.initial, r, v[k].session).stats;
+      GradientStats st = engines[k]->evaluate(r, v[k].session).stats;
       v[k].seconds.push_back(since(t0));
       v[k].split[0] += st.secondsPrimal / a.steps;
       v[k].split[1] += st.secondsDerivative / a.steps;

@@ -51,7 +51,7 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler s
     r.views = viewsForStep(p, uint64_t(i));
     r.step = uint64_t(i);
     r.seed = p.seed;
-    GradientResult g = engine.evaluate(p.initial, r, session);
+    GradientResult g = engine.evaluate(r, session);
     out.stage1 += g.stats.secondsStage1;
     for (size_t k = 0; k < sum.size(); ++k) {
       sum[k] += g.gradient[k];
@@ -117,6 +117,7 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   std::vector<Image> targets = renderTargets(p);
   // The fixed theta: the job's start, or part of the way from the truth to it.
   for (size_t k = 0; k < p.initial.size(); ++k) p.initial[k] = p.truth[k] + float(a.thetaFraction) * (p.initial[k] - p.truth[k]);
+  p.params.write(p.initial, *p.scene);  // every evaluation here is at that theta
   int pixels = p.scene->width * p.scene->height;
   int n = a.samples > 0 ? a.samples : std::max(1, pixels / 5);
   BenchReport rep("pixel-variance");

@@ -64,8 +64,7 @@ void runOptimize(const OptimizeArgs& a) {
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
   }
-  RenderOptions ro;
-  ro.spp = 64;
+  RenderOptions ro = transportRenderOptions(problem, 64, Stream::FinalRender);  // the targets' transport
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {
     writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
     writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);

@@ -30,7 +30,7 @@
 #include "core/io/job_io.h"
 #include "core/io/limits.h"
 #include "core/optim/figures.h"
-#include "core/optim/local_run.h"
+#include "core/optim/optimization_loop.h"
 #include "core/optim/results_io.h"
 #include "invr/v1/service.grpc.pb.h"
 #include "server/asset_store.h"
@@ -1036,100 +1036,118 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
               << p.scene->cameras.size() << " views in " << p.shards.size() << " shards";
         logEventLocked(j, msg.str());
       }
-      const uint64_t total = uint64_t(p.burnIn) + uint64_t(p.steps);
+      LoopState start;
+      start.theta = theta;
+      start.optimizer = state;
+      start.counter = counter;
+      start.step = step;
+      OptimizationLoop loop(p, std::move(start), p.burnIn, p.steps);
       auto runStart = Clock::now();
       uint64_t stepsThisRun = 0;
       Clock::time_point firstStepDone = runStart;
-      while (counter < total) {
-        Evaluation e = evaluationAt(p, counter);
+      // The shards go to workers; the loop sums their results in shard order, as in process.
+      double wall = 0, slowest = 0;
+      auto evaluateOnWorkers = [&](const Evaluation& e, const std::vector<float>& at) {
         std::vector<std::optional<v1::Task>> tasks(p.shards.size());
         for (size_t s = 0; s < p.shards.size(); ++s) {
           GradientRequest r = shardRequest(p, e, s);
           if (r.views.empty()) continue;
-          v1::Task t = baseTask(run, s, theta);
+          v1::Task t = baseTask(run, s, at);
           t.set_kind(v1::Task::GRADIENT);
           t.mutable_views()->Assign(r.views.begin(), r.views.end());
           t.set_batch_views(uint32_t(r.batchViews));
           t.set_all_shard_views(r.allSessionViews);
-          t.set_counter(counter);
+          t.set_counter(e.counter);
           t.set_render_only(e.renderOnly);
           tasks[s] = std::move(t);
         }
         auto t0 = Clock::now();
         auto results = dispatch(run, tasks);
-        double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-        ++counter;
-        if (e.renderOnly) {
-          if (counter == 1 || counter == uint64_t(p.burnIn))
-            logEvent(id, "burn-in " + std::to_string(counter) + "/" + std::to_string(p.burnIn) + " (render-only steps that fill the reservoirs)");
-          continue;
-        }
-        auto u0 = Clock::now();
-        // Same arithmetic, same order as runLocally: bit-identical parameters.
-        GradientResult sum;
-        v1::StepProgress sp;
-        double slowest = 0;
-        for (auto& r : results) {
+        wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        slowest = 0;
+        std::vector<std::optional<GradientResult>> out(results.size());
+        for (size_t s = 0; s < results.size(); ++s) {
+          const auto& r = results[s];
           if (!r) continue;
           GradientResult g;
           g.gradient.assign(r->gradient().begin(), r->gradient().end());
           g.stats.loss = r->loss();
           g.stats.nonFiniteSamples = r->non_finite();
-          accumulateShard(sum, g);
-          sp.set_render_seconds(sp.render_seconds() + r->seconds_primal());
-          sp.set_derivative_seconds(sp.derivative_seconds() + r->seconds_derivative());
-          sp.set_reservoir_seconds(sp.reservoir_seconds() + r->seconds_reservoir());
-          sp.set_stage1_seconds(sp.stage1_seconds() + r->seconds_stage1());
-          sp.set_reservoirs(sp.reservoirs() + r->reservoirs());
-          sp.set_mean_m(std::max(sp.mean_m(), r->mean_m()));
-          sp.set_mean_neighbours(std::max(sp.mean_neighbours(), r->mean_neighbours()));
+          g.stats.secondsPrimal = r->seconds_primal();
+          g.stats.secondsDerivative = r->seconds_derivative();
+          g.stats.secondsReservoirUpdate = r->seconds_reservoir();
+          g.stats.secondsStage1 = r->seconds_stage1();
+          g.stats.reservoirs = r->reservoirs();
+          g.stats.meanM = r->mean_m();
+          g.stats.meanNeighbours = r->mean_neighbours();
           slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session() +
                                           r->seconds_stage1());
+          out[s] = std::move(g);
         }
-        ++step;
-        checkDivergence(p, step, sum.stats.loss, theta);
-        optimizerStep(p.optimizer, p.params, sum.gradient, theta, state, p.schedule);
+        return out;
+      };
+      while (!loop.done()) {
+        const bool burnIn = loop.burningIn();
+        std::optional<GradientResult> g;
         try {
-          checkDivergence(p, step, sum.stats.loss, theta);
-        } catch (const InputError& err) {
-          throw JobFailed{std::string(err.what()) + "; the last good checkpoint (step " + std::to_string(step - 1) + ") is kept"};
+          g = loop.next(evaluateOnWorkers);
+        } catch (const InputError& err) {  // divergence: the loop kept the last good state
+          throw JobFailed{std::string(err.what()) + "; the last good checkpoint (step " + std::to_string(loop.state().step) + ") is kept"};
         }
+        if (burnIn) {
+          const uint64_t c = loop.state().counter;
+          if (c == 1 || c == uint64_t(p.burnIn))
+            logEvent(id, "burn-in " + std::to_string(c) + "/" + std::to_string(p.burnIn) + " (render-only steps that fill the reservoirs)");
+          continue;
+        }
+        auto u0 = Clock::now();
+        const LoopState& ls = loop.state();
+        theta = ls.theta;
         ++stepsThisRun;
         // Rates from the steps after this run's first (which includes building sessions and targets).
         if (stepsThisRun == 1) firstStepDone = Clock::now();
         double seconds = secondsBefore + std::chrono::duration<double>(Clock::now() - runStart).count();
-        ck.set_step(step);
-        ck.set_counter(counter);
-        ck.mutable_theta()->Assign(theta.begin(), theta.end());
-        ck.mutable_adam_m()->Assign(state.m.begin(), state.m.end());
-        ck.mutable_adam_v()->Assign(state.v.begin(), state.v.end());
-        ck.set_optimizer_step(state.step);
+        ck.set_step(ls.step);
+        ck.set_counter(ls.counter);
+        ck.mutable_theta()->Assign(ls.theta.begin(), ls.theta.end());
+        ck.mutable_adam_m()->Assign(ls.optimizer.m.begin(), ls.optimizer.m.end());
+        ck.mutable_adam_v()->Assign(ls.optimizer.v.begin(), ls.optimizer.v.end());
+        ck.set_optimizer_step(ls.optimizer.step);
         ck.set_seconds(seconds);
         jobs.saveCheckpoint(id, ck);  // before the progress event: the log never runs ahead of it
         haveCheckpoint = true;
         double perStep = stepsThisRun == 1 ? wall : std::chrono::duration<double>(Clock::now() - firstStepDone).count() / double(stepsThisRun - 1);
-        sp.set_step(step);
+        const GradientStats& st = g->stats;
+        v1::StepProgress sp;
+        sp.set_render_seconds(st.secondsPrimal);
+        sp.set_derivative_seconds(st.secondsDerivative);
+        sp.set_reservoir_seconds(st.secondsReservoirUpdate);
+        sp.set_stage1_seconds(st.secondsStage1);
+        sp.set_reservoirs(st.reservoirs);
+        sp.set_mean_m(st.meanM);
+        sp.set_mean_neighbours(st.meanNeighbours);
+        sp.set_step(ls.step);
         sp.set_steps(uint64_t(p.steps));
-        sp.set_loss(sum.stats.loss);
-        sp.set_param_error(p.groundTruthKnown() ? parameterError(p, theta) : -1.0);
+        sp.set_loss(st.loss);
+        sp.set_param_error(p.groundTruthKnown() ? parameterError(p, ls.theta) : -1.0);
         sp.set_seconds(seconds);
         sp.set_steps_per_second(1.0 / perStep);
-        sp.set_eta_seconds(perStep * double(uint64_t(p.steps) - step));
-        sp.set_non_finite(sum.stats.nonFiniteSamples);
+        sp.set_eta_seconds(perStep * double(uint64_t(p.steps) - ls.step));
+        sp.set_non_finite(st.nonFiniteSamples);
         sp.set_transport_seconds(std::max(0.0, wall - slowest));
         sp.set_update_seconds(std::chrono::duration<double>(Clock::now() - u0).count());
-        csv.push_back(method + "," + std::to_string(step) + "," + std::to_string(seconds) + "," + fmtDouble(sp.loss()) + "," +
+        csv.push_back(method + "," + std::to_string(ls.step) + "," + std::to_string(seconds) + "," + fmtDouble(sp.loss()) + "," +
                       fmtDouble(sp.param_error()));
         std::lock_guard<std::mutex> lk(mu);
         JobEntry& j = jobTable.at(id);
-        j.step = step;
+        j.step = ls.step;
         j.loss = sp.loss();
         j.paramError = sp.param_error();
         j.seconds = seconds;
         v1::ProgressEvent ev;
         *ev.mutable_step() = sp;
         publishLocked(j, std::move(ev));
-        spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, step, sp.loss(), sp.param_error(),
+        spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, ls.step, sp.loss(), sp.param_error(),
                      sp.steps_per_second());
       }
       writeResults(run, p, theta, csv);

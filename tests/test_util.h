@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
+#include <algorithm>
 
 #include "core/io/job_io.h"
 #include "core/scene/scene_builder.h"
@@ -48,6 +50,63 @@ inline std::string pngDeclaringSize(uint32_t w, uint32_t h) {
   std::string iend = "IEND";
   return std::string("\x89PNG\r\n\x1a\n", 8) + be(13) + ihdr + be(crc32(ihdr)) + be(4) + idat + be(crc32(idat)) + be(0) + iend +
          be(crc32(iend));
+}
+
+// Per-pixel statistics of an image estimator over independent repetitions: the mean of each
+// pixel's luminance and the standard error of that mean from the pixel's own spread.
+struct PixelStats {
+  int width = 0, height = 0;
+  std::vector<MeanSE> pixel;
+  PixelStats(int w, int h) : width(w), height(h), pixel(size_t(w) * size_t(h)) {}
+  template <class Image>
+  void add(const Image& im) {
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        auto c = im.rgb(x, y);
+        pixel[size_t(y) * size_t(width) + size_t(x)].add(0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z);
+      }
+  }
+};
+
+// Two estimators of the same image compared region by region (block x block pixels): for each
+// region the difference of the means in units of its standard error, from the pixels' own
+// variances (independent pixels: the region's variance is the sum of theirs). Also the regions'
+// relative standard errors, which say how small a bias the comparison can see.
+struct RegionComparison {
+  std::vector<double> z, relativeSe, mean;
+  double maxAbsZ() const {
+    double m = 0;
+    for (double v : z) m = std::max(m, std::abs(v));
+    return m;
+  }
+  double meanZ2() const {
+    double s = 0;
+    for (double v : z) s += v * v;
+    return z.empty() ? 0 : s / double(z.size());
+  }
+};
+
+inline RegionComparison compareRegions(const PixelStats& a, const PixelStats& b, int block) {
+  RegionComparison out;
+  for (int by = 0; by + block <= a.height; by += block)
+    for (int bx = 0; bx + block <= a.width; bx += block) {
+      double ma = 0, mb = 0, va = 0, vb = 0;
+      for (int y = by; y < by + block; ++y)
+        for (int x = bx; x < bx + block; ++x) {
+          const MeanSE& pa = a.pixel[size_t(y) * size_t(a.width) + size_t(x)];
+          const MeanSE& pb = b.pixel[size_t(y) * size_t(b.width) + size_t(x)];
+          ma += pa.mean;
+          mb += pb.mean;
+          va += pa.se() * pa.se();
+          vb += pb.se() * pb.se();
+        }
+      double se = std::sqrt(va + vb);
+      if (!(se > 0)) continue;  // a region both estimators see as exactly constant (black)
+      out.z.push_back((ma - mb) / se);
+      out.relativeSe.push_back(mb != 0 ? se / std::abs(mb) : 0);
+      out.mean.push_back(mb);
+    }
+  return out;
 }
 
 inline std::unique_ptr<Scene> sceneFromJson(const std::string& sceneJson) {

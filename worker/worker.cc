@@ -268,6 +268,8 @@ class Worker {
     // parameters, on random streams of their own (top bit set) so no step's stream is reused.
     if (t.counter() > 0 && t.rebuild_burn_in() > 0) {
       std::vector<float> theta(t.theta().begin(), t.theta().end());
+      if (theta.size() != p.params.size()) throw InputError("task: theta has " + std::to_string(theta.size()) + " values, the job " + std::to_string(p.params.size()));
+      p.params.write(theta, *p.scene);  // the session's one writer, between passes
       for (uint32_t k = 0; k < t.rebuild_burn_in(); ++k) {
         GradientRequest r;
         r.views = p.shards[t.shard()];
@@ -276,7 +278,7 @@ class Worker {
         r.renderOnly = true;
         r.allSessionViews = true;
         r.cancel = &cancel_;
-        s.engine->evaluate(theta, r, s.state);
+        s.engine->evaluate(r, s.state);
       }
     }
     res.set_rebuilt(true);
@@ -313,8 +315,7 @@ class Worker {
       if (theta.size() != p.params.size()) throw InputError("task: theta has " + std::to_string(theta.size()) + " values, the job " + std::to_string(p.params.size()));
       if (t.kind() == v1::Task::FINAL_RENDER) {
         p.params.write(theta, *p.scene);
-        RenderOptions ro = renderOptionsFrom(spec->render());
-        ro.spp = std::max(1, t.final_spp());
+        RenderOptions ro = transportRenderOptions(p, std::max(1, t.final_spp()), Stream::FinalRender);
         ro.cancel = &cancel_;
         for (int v : t.views()) toProto(renderView(*p.scene, v, ro).image, res.add_renders());
         for (int v : t.views()) toProto(s.targets.at(size_t(v)), res.add_renders());
@@ -328,7 +329,8 @@ class Worker {
       r.batchViews = int(t.batch_views());
       r.allSessionViews = t.all_shard_views();
       r.cancel = &cancel_;
-      GradientResult g = s.engine->evaluate(theta, r, s.state);
+      p.params.write(theta, *p.scene);  // between tasks: nothing renders now
+      GradientResult g = s.engine->evaluate(r, s.state);
       res.mutable_gradient()->Assign(g.gradient.begin(), g.gradient.end());
       res.set_loss(g.stats.loss);
       res.set_seconds_primal(g.stats.secondsPrimal);

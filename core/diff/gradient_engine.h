@@ -1,15 +1,17 @@
-// The gradient of an image loss for material and light parameters under direct illumination
-// (the interior term of Wang et al. 2023, Eq. 12-13), with one of three light-sampling strategies:
-//   pt      one light sample (by power) + BSDF sampling with MIS     (baseline B.1)
-//   ris     streaming RIS over M candidates                         (baseline B.2)
+// The gradient of an image loss for material and light parameters (the interior term of Wang et
+// al. 2023, Eq. 12-13), with one of the interior estimators of interior_estimator.h:
+//   pt      one light sample (by power) + BSDF sampling with MIS, any path length  (baseline B.1)
+//   ris     streaming RIS over M candidates                                       (baseline B.2)
 //   restir  RIS + reuse of the previous step's reservoirs (Alg. 3-4, 7-8)
 //
-// Each step runs two independent passes: a primal pass renders I (for the loss and dL/dI) and a
-// derivative pass samples fresh paths and backpropagates dL/dI through them (radiative
-// backpropagation, Eq. 16: pdfs, visibility and RIS weights detached). Independence makes the
-// product dL/dI * dI/dtheta unbiased for the L2 losses. With restir the two passes keep separate
-// reservoir chains for the same reason; "forward only" uses ReSTIR in the primal pass and plain RIS
-// in the derivative pass.
+// Each step runs two independent passes: a primal pass renders I (for dL/dI) and a derivative
+// pass samples fresh paths and backpropagates dL/dI through them (radiative backpropagation,
+// Eq. 16: pdfs, visibility and RIS weights detached). Independence makes the product
+// dL/dI * dI/dtheta unbiased for the L2 losses, and the two renders give an unbiased loss,
+// (I1 - T)(I2 - T). With restir the two passes keep separate reservoir chains for the same reason;
+// "forward only" uses ReSTIR in the primal pass and plain RIS in the derivative pass.
+//
+// The scene is read-only here: whoever owns it writes theta before evaluate() and never during.
 #pragma once
 
 #include <atomic>
@@ -17,36 +19,11 @@
 #include <memory>
 #include <vector>
 
-#include "core/diff/loss.h"
+#include "core/diff/gradient_options.h"
 #include "core/diff/parameters.h"
-#include "core/diff/pixel_sampler.h"
-#include "core/restir/direct_restir.h"
+#include "core/diff/sample_drops.h"
 
 namespace invr {
-
-enum class GradientMethod { Pt, Ris, Restir };
-GradientMethod gradientMethodFromName(const std::string& name);  // throws InputError
-const char* gradientMethodName(GradientMethod m);
-
-struct GradientOptions {
-  GradientMethod method = GradientMethod::Restir;
-  RestirSettings restir;      // candidates and visibility also apply to ris
-  // Neighbour search radius in pixels: at a shading point at distance t the world radius is
-  // radiusPixels * t * 2 tan(fov/2) / height, so reuse stays local whatever the scene's scale.
-  float radiusPixels = 3.f;
-  bool forwardOnly = false;   // restir in the primal pass only
-  bool preserveOccluded = true;  // keep reservoirs no view of the batch sees (Alg. 8)
-  // Look for ReSTIR neighbours among last step's pixels first when last step rendered the view
-  // (see runPass); false always searches the kd-tree (tests and benchmarks of that path).
-  bool pixelNeighbours = true;
-  int sppPrimal = 1;
-  int sppGradient = 1;
-  LossKind loss = LossKind::L2;
-  // Path vertices after the camera. 1: direct illumination with the method's light sampling;
-  // > 1: path tracing with NEE + MIS at every vertex, differentiated by path replay (method pt).
-  int maxDepth = 1;
-  PixelSamplingOptions pixels;  // which pixels a step traces (all, or a mini-batch)
-};
 
 struct GradientRequest {
   std::vector<int> views;  // the mini-batch
@@ -66,13 +43,18 @@ struct GradientRequest {
 
 
 struct GradientStats {
+  // The loss of this step's views, unbiased: the mean of (I1 - T)(I2 - T) over pixels, from the
+  // two independent renders (l2, relative_l2; for l1, |(I1 + I2)/2 - T|). One render's (I - T)^2
+  // would add the render's variance to the figure.
   double loss = 0.0;
   std::vector<double> viewLoss;
   double secondsPrimal = 0, secondsDerivative = 0, secondsReservoirUpdate = 0;
   double secondsStage1 = 0;   // pixel-sampling maps (when refreshed this step)
   uint64_t pixelsTraced = 0;  // distinct pixels traced by the primal pass
-  uint64_t nonFiniteSamples = 0;  // primal samples and derivative paths dropped
+  SampleDrops drops;          // non-finite samples, by where they were met
+  uint64_t nonFiniteSamples = 0;  // drops.total()
   size_t reservoirs = 0, reservoirsPreserved = 0;
+  size_t reservoirsCarried = 0;  // of the preserved: kept because their pixel was not drawn (pixel mini-batches)
   double meanNeighbours = 0, meanM = 0;
   int kdTreesBuilt = 0;  // ReSTIR chains that needed their kd-tree this step (0-2)
   RayStats rays;
@@ -90,33 +72,28 @@ struct EngineSession {
   std::map<int, PixelMap> pixelMaps;  // per view: the pixel-sampling probabilities
 };
 
+class GradientScratchPool;
+
 class GradientEngine {
  public:
   // targets[v] is the image view v should reproduce (may be empty for views never requested).
-  GradientEngine(Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options);
+  GradientEngine(const Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options);
   ~GradientEngine();
 
-  // Writes theta into the scene, then estimates the gradient at it.
-  GradientResult evaluate(const std::vector<float>& theta, const GradientRequest& request, EngineSession& session);
+  // Estimates the gradient at the parameters the scene holds now.
+  GradientResult evaluate(const GradientRequest& request, EngineSession& session);
   const GradientOptions& options() const { return opt_; }
   // Stage 1 of pixel sampling for one view, on its own (benchmarks build reference maps from many).
-  Stage1 measureStage1(int view, const GradientRequest& request) { return runStage1(view, request); }
+  Stage1 measureStage1(int view, const GradientRequest& request);
 
  private:
-  struct PassResult;
-  PassResult runPass(int view, int pass, const GradientRequest& req, const ReservoirStore* prev,
-                     StoredReservoir* store, const Image* adjoint, std::vector<double>* gradient,
-                     const PixelBatch* batch = nullptr, std::vector<float>* derivSq = nullptr);
-  // Stage 1 of pixel sampling for one view: one path per cell of a sparse grid, primal and
-  // derivative, plus first-hit guides (see pixel_sampler.h).
-  Stage1 runStage1(int view, const GradientRequest& req);
+  Stage1 runStage1(int view, const GradientRequest& req, SampleDrops& drops);
 
-  Scene& scene_;
+  const Scene& scene_;
   const ParameterRegistry& params_;
   std::vector<Image> targets_;
   GradientOptions opt_;
-  struct Scratch;
-  std::unique_ptr<Scratch> scratch_;
+  std::unique_ptr<GradientScratchPool> scratch_;
 };
 
 // True if the surface point p is inside camera's frustum and not occluded from it.

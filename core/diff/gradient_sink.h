@@ -1,8 +1,8 @@
 // Sparse gradient accumulation with a deterministic reduction. Each fixed block of work (a tile of
-// pixels) owns one TileGradient; paths add entries to a PathGradient that is committed (through
-// the working thread's GradientScratch) only if every entry is finite (non-finite paths are
-// counted and dropped here, in one place). Tiles are then reduced in tile order, so the sum does
-// not depend on thread count or scheduling.
+// pixels) owns one TileGradient; the samples of a pixel add entries to a PathGradient, which the
+// pass driver checks (non-finite samples are dropped and counted there) and commits through the
+// working thread's GradientScratch. Tiles are then reduced in tile order, so the sum does not
+// depend on thread count or scheduling.
 #pragma once
 
 #include <algorithm>
@@ -17,9 +17,12 @@ class PathGradient {
  public:
   void add(uint32_t index, float value) { entries_.emplace_back(index, value); }
   void clear() { entries_.clear(); }
-  bool finite() const {
-    for (const auto& e : entries_)
-      if (!std::isfinite(e.second)) return false;
+  size_t size() const { return entries_.size(); }
+  void truncate(size_t n) { entries_.resize(std::min(n, entries_.size())); }
+  // Whether the entries from index `from` on are all finite.
+  bool finiteFrom(size_t from) const {
+    for (size_t i = from; i < entries_.size(); ++i)
+      if (!std::isfinite(entries_[i].second)) return false;
     return true;
   }
   const std::vector<std::pair<uint32_t, float>>& entries() const { return entries_; }
@@ -35,12 +38,10 @@ class TileGradient {
   void reduceInto(std::vector<double>& dense) const {
     for (const auto& e : sums_) dense[e.first] += e.second;
   }
-  uint64_t nonFinite() const { return nonFinite_; }
 
  private:
   friend class GradientScratch;
   std::vector<std::pair<uint32_t, double>> sums_;
-  uint64_t nonFinite_ = 0;
 };
 
 // A thread's dense accumulator for the tile it is working on: paths add into one double per
@@ -51,18 +52,14 @@ class GradientScratch {
  public:
   explicit GradientScratch(size_t parameters = 0) : sum_(parameters, 0.0), touched_(parameters, 0) {}
   size_t parameters() const { return sum_.size(); }
-  // Adds the path's entries if all are finite; otherwise counts it as non-finite.
-  void commit(PathGradient& path) {
-    if (path.finite()) {
-      for (const auto& e : path.entries()) {
-        if (!touched_[e.first]) {
-          touched_[e.first] = 1;
-          order_.push_back(e.first);
-        }
-        sum_[e.first] += double(e.second);
+  // Adds scale * the path's entries (the caller checked they are finite) and clears the path.
+  void commit(PathGradient& path, float scale = 1.f) {
+    for (const auto& e : path.entries()) {
+      if (!touched_[e.first]) {
+        touched_[e.first] = 1;
+        order_.push_back(e.first);
       }
-    } else {
-      ++nonFinite_;
+      sum_[e.first] += double(e.second) * double(scale);
     }
     path.clear();
   }
@@ -75,15 +72,12 @@ class GradientScratch {
       touched_[i] = 0;
     }
     order_.clear();
-    tile.nonFinite_ += nonFinite_;
-    nonFinite_ = 0;
   }
 
  private:
   std::vector<double> sum_;
   std::vector<uint8_t> touched_;
   std::vector<uint32_t> order_;  // indices in first-touch order
-  uint64_t nonFinite_ = 0;
 };
 
 }  // namespace invr

@@ -25,4 +25,12 @@ const char* lossName(LossKind kind);
 double imageLoss(LossKind kind, const Image& rendered, const Image& target, Image* adjoint, int viewsInBatch = 1,
                  const std::vector<float>* pixelWeights = nullptr);
 
+// An unbiased estimate of the loss of the expected image E[I] from two independent renders of it:
+// l2 (I1 - T)(I2 - T), relative_l2 the same weighted, since E[(I1 - T)(I2 - T)] = (E[I] - T)^2.
+// (One render's (I - T)^2 adds Var(I), which would favour whichever method is less noisy rather
+// than closer.) l1 has no such estimate: |(I1 + I2)/2 - T|, biased upwards by the noise.
+// Normalised and weighted like imageLoss.
+double unbiasedImageLoss(LossKind kind, const Image& render1, const Image& render2, const Image& target, int viewsInBatch = 1,
+                         const std::vector<float>* pixelWeights = nullptr);
+
 }  // namespace invr

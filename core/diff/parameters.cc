@@ -50,7 +50,7 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
       if (!mat.hasAlbedo()) return fail("material '" + parts[1] + "' has no albedo (only diffuse and rough_plastic do)");
       slot.kind = ParamKind::Albedo;
       slot.channels = 3;
-      slot.lower = 0.f;
+      slot.lower = kPositiveFloor;
       slot.upper = 1.f;
       tex = &mat.albedo;
     } else if (parts[2] == "roughness") {
@@ -76,7 +76,7 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
     slot.kind = ParamKind::LightIntensity;
     slot.light = l;
     slot.channels = 3;
-    slot.lower = 0.f;
+    slot.lower = kPositiveFloor;
     slot.upper = std::numeric_limits<float>::infinity();
   } else {
     return fail("unknown parameter group '" + parts[0] + "' (use materials or lights)");

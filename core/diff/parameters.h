@@ -16,6 +16,12 @@ namespace invr {
 
 enum class ParamKind { Albedo, Roughness, LightIntensity };
 
+// Default lower bound of albedos and light intensities. Above zero so that optimisation never
+// changes where a light sample's target is positive: ReSTIR's normalisation (Z) counts the reused
+// reservoirs that could have produced a sample by evaluating their target now, which is exact
+// only while positivity is what it was when they were created.
+inline constexpr float kPositiveFloor = 1e-4f;
+
 struct ParameterSlot {
   std::string name;
   ParamKind kind = ParamKind::Albedo;

@@ -66,11 +66,13 @@ std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& 
   return out;
 }
 
-std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive) {
+std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive, uint64_t* nonFinite) {
   const size_t n = map.size();
   double total = 0;
-  for (float v : map)
+  for (float v : map) {
     if (std::isfinite(v) && v > 0.f) total += double(v);
+    if (!std::isfinite(v) && nonFinite) ++*nonFinite;
+  }
   std::vector<float> p(n);
   const double uniform = 1.0 / double(n);
   if (!(total > 0.0)) {
@@ -84,13 +86,14 @@ std::vector<float> defensiveMixture(const std::vector<float>& map, float defensi
   return p;
 }
 
-PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step) {
+PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step, SampleDrops* drops) {
   PixelMap m;
+  uint64_t* nonFinite = drops ? &drops->pixelMap : nullptr;
   m.computedAt = step;
   const size_t n = size_t(s.width) * size_t(s.height);
   switch (o.sampler) {
-    case PixelSampler::LossGrad: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, lossGradMap(s)), o.defensive)); break;
-    case PixelSampler::Adaptive: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, adaptiveMap(s, o.levels)), o.defensive)); break;
+    case PixelSampler::LossGrad: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, lossGradMap(s)), o.defensive, nonFinite)); break;
+    case PixelSampler::Adaptive: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, adaptiveMap(s, o.levels)), o.defensive, nonFinite)); break;
     default: m.setProbabilities(std::vector<float>(n, float(1.0 / double(n)))); break;
   }
   return m;

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/math/rng.h"
+#include "core/diff/sample_drops.h"
 #include "core/math/sampling.h"
 
 namespace invr {
@@ -66,13 +67,13 @@ std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& 
 
 // The defensive mixture: (1 - defensive) * map / sum(map) + defensive / P. A map with no mass
 // (all zero, non-finite) falls back to uniform.
-std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive);
+std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive, uint64_t* nonFinite = nullptr);
 
 std::vector<float> lossGradMap(const Stage1& s);                // loss_grad_sampler.cc
 std::vector<float> adaptiveMap(const Stage1& s, int levels);    // adaptive_sampler.cc
 
 // The sampler's probabilities from a stage-1 measurement (uniform needs none).
-PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step);
+PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step, SampleDrops* drops = nullptr);
 
 // A mini-batch of one view: per pixel, how many of the N draws chose it and its weight
 // count_j / (N p_j) (both zero for pixels not drawn). Every draw gets paths of its own (Alg. 1

@@ -38,6 +38,15 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   }
   p.truth = p.params.read(*p.scene);
   p.initial = p.truth;
+  if (o.method() == v1::METHOD_RESTIR || o.method() == v1::METHOD_UNSPECIFIED)
+    for (int i = 0; i < o.parameters_size(); ++i) {
+      const ParameterSlot& s = p.params.slots()[size_t(i)];
+      if ((s.kind == ParamKind::Albedo || s.kind == ParamKind::LightIntensity) && !(s.lower > 0.f))
+        fail("parameters[" + std::to_string(i) + "].lower",
+             "must be above 0 with method METHOD_RESTIR (default " + std::to_string(kPositiveFloor) +
+             "): a value at 0 changes which light samples reused reservoirs could have produced, and ReSTIR's "
+             "normalisation would count them wrongly (a biased gradient)");
+    }
   for (int i = 0; i < o.parameters_size(); ++i) {
     if (!o.parameters(i).has_initial()) continue;
     const ParameterSlot& s = p.params.slots()[size_t(i)];
@@ -46,6 +55,9 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
       fail("parameters[" + std::to_string(i) + "].initial", "outside the bounds [" + std::to_string(s.lower) + ", " + std::to_string(s.upper) + "]");
     std::fill(p.initial.begin() + s.offset, p.initial.begin() + s.offset + s.size, v);
   }
+  // The scene's own values (the default start) may lie outside the default bounds (a black texel
+  // under the positive floor): start inside them.
+  p.params.clampToBounds(p.initial);
   switch (o.method()) {
     case v1::METHOD_PT: p.gradient.method = GradientMethod::Pt; break;
     case v1::METHOD_RIS: p.gradient.method = GradientMethod::Ris; break;
@@ -93,6 +105,11 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   p.gradient.preserveOccluded = !r.discard_occluded();
   if (o.max_depth() < 0 || o.max_depth() > 64) fail("max_depth", "must be in 1..64 (got " + std::to_string(o.max_depth()) + ")");
   p.gradient.maxDepth = std::max(1, o.max_depth());
+  if (job.render().max_depth() != 0 && job.render().max_depth() != p.gradient.maxDepth)
+    throw InputError("render.max_depth (" + std::to_string(job.render().max_depth()) + ") and optimization.max_depth (" +
+                     std::to_string(p.gradient.maxDepth) + (o.max_depth() == 0 ? ", the default" : "") +
+                     ") disagree: targets, gradients and final renders share one light transport, set by "
+                     "optimization.max_depth; remove render.max_depth or make the two equal");
   if (p.gradient.maxDepth > 1 && p.gradient.method != GradientMethod::Pt)
     fail("max_depth", "paths longer than direct illumination are differentiated by path replay with NEE + MIS at every vertex: set method METHOD_PT");
   try {
@@ -149,11 +166,12 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
   return p;
 }
 
-RenderOptions targetRenderOptions(const Problem& p) {
+RenderOptions transportRenderOptions(const Problem& p, int spp, Stream stream) {
   // Targets set the floor of every reconstruction (the optimum fits their noise), so use the
   // lowest-variance estimator we have: visibility-aware RIS with 16 candidates.
   RenderOptions ro;
-  ro.spp = p.targetSpp;
+  ro.spp = spp;
+  ro.russianRouletteDepth = p.gradient.russianRouletteDepth;
   ro.maxDepth = 1;
   ro.estimator = LightEstimator::Ris;
   ro.risCandidates = 16;
@@ -162,9 +180,11 @@ RenderOptions targetRenderOptions(const Problem& p) {
     ro.maxDepth = p.gradient.maxDepth;
     ro.estimator = LightEstimator::NeeMis;
   }
-  ro.seed = mix64(p.seed ^ 0x7a26e7u);
+  ro.seed = streamSeed(p.seed, stream);
   return ro;
 }
+
+RenderOptions targetRenderOptions(const Problem& p) { return transportRenderOptions(p, p.targetSpp, Stream::Target); }
 
 Image renderTarget(Problem& p, int view, const std::atomic<bool>* cancel) {
   if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
@@ -213,7 +233,7 @@ std::vector<int> viewsForStep(const Problem& p, uint64_t step) {
   std::iota(all.begin(), all.end(), 0);
   if (p.viewsPerStep >= n) return all;
   // Fisher-Yates with counter-based randomness: the batch depends only on (seed, step).
-  Sampler s(RngKey{p.seed, step, 0xba7c4u, 0, 0});
+  Sampler s(RngKey{streamSeed(p.seed, Stream::ViewBatch), step, 0, 0, 0});
   for (int i = n - 1; i > 0; --i) std::swap(all[size_t(i)], all[size_t(s.nextBits() % uint64_t(i + 1))]);
   all.resize(size_t(p.viewsPerStep));
   std::sort(all.begin(), all.end());

@@ -46,8 +46,13 @@ GradientRequest shardRequest(const Problem& problem, const Evaluation& e, size_t
 
 Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets = {});
 
-// Ground-truth targets: the truth rendered with the forward renderer (direct illumination,
-// visibility-aware RIS with 16 candidates, target_spp samples per pixel).
+// The job's light transport for forward renders: targets, final renders and the image-error
+// meter all render through it, so they show what the gradients differentiate (optimization.
+// max_depth vertices; direct illumination with visibility-aware RIS over 16 candidates, longer
+// paths with NEE + MIS), on random stream `stream` of the job.
+RenderOptions transportRenderOptions(const Problem& problem, int spp, Stream stream);
+
+// Ground-truth targets: the truth rendered through the job's transport at target_spp.
 // Uploaded targets are returned as given.
 std::vector<Image> renderTargets(Problem& problem);
 RenderOptions targetRenderOptions(const Problem& problem);  // how targets are rendered

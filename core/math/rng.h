@@ -14,6 +14,26 @@ inline constexpr uint64_t mix64(uint64_t z) {
   return z ^ (z >> 31);
 }
 
+// The purposes random numbers serve within one job. Each has streams of its own.
+enum class Stream : uint64_t {
+  Primal = 1,            // primal pass of a gradient step
+  Derivative = 2,        // derivative pass (independent of the primal one: dL/dI * dI/dtheta)
+  Stage1Primal = 3,      // pixel-sampling statistics (Yan et al. 2025, stage 1)
+  Stage1Derivative = 4,
+  Target = 5,            // ground-truth targets and final renders
+  PixelBatch = 6,        // which pixels a step traces
+  ViewBatch = 7,         // which views a step renders
+  FinalRender = 8,       // renders of the result
+  ImageError = 9,        // the image-error meter's renders
+};
+
+// The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as
+// seed * 2 + pass would make seed s's third stream seed s + 1's first, so runs with neighbouring
+// seeds would share numbers and not be independent.
+inline constexpr uint64_t streamSeed(uint64_t seed, Stream stream) {
+  return mix64(mix64(seed ^ 0x2545f4914f6cdd1dull) + uint64_t(stream) * 0x9e3779b97f4a7c15ull);
+}
+
 struct RngKey {
   uint64_t seed = 0;
   uint64_t step = 0;

@@ -11,9 +11,8 @@ ImageErrorMeter::ImageErrorMeter(Problem& p, int maxViews, int spp) : problem_(p
   if (maxViews < 1 || spp < 1) throw InputError("image error: views and spp must be positive");
   int n = std::min<int>(maxViews, int(p.scene->cameras.size()));
   for (int v = 0; v < n; ++v) views_.push_back(v);
-  options_ = targetRenderOptions(p);
-  options_.spp = spp;
-  options_.seed ^= 0x1e4a6e0f5ull;  // not the targets' own stream: their noise is not what we compare
+  // Not the targets' own stream: their noise is not what we compare.
+  options_ = transportRenderOptions(p, spp, Stream::ImageError);
   if (!p.groundTruthKnown()) {
     for (int v : views_) reference_.push_back(p.givenTargets.at(size_t(v)));
   } else {

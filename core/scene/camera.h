@@ -27,6 +27,17 @@ struct Camera {
     float sx = tanHalfFovY * (2.f * px - float(width)) / float(height);  // aspect folded in
     return normalize(forward + right * sx + up * sy);
   }
+  // The film position (px, py) a point projects to: the inverse of direction(). False if the
+  // point is behind the camera or outside the film.
+  bool project(Vec3 p, int width, int height, float& px, float& py) const {
+    Vec3 d = p - eye;
+    float z = dot(d, forward);
+    if (!(z > 0.f)) return false;
+    float sx = dot(d, right) / z, sy = dot(d, up) / z;
+    px = 0.5f * (sx * float(height) / tanHalfFovY + float(width));
+    py = 0.5f * float(height) * (1.f - sy / tanHalfFovY);
+    return px >= 0.f && py >= 0.f && px < float(width) && py < float(height);
+  }
 };
 
 }  // namespace invr

@@ -58,9 +58,9 @@ inline constexpr const char* kReflectionScene = R"({
   "film": {"width": 40, "height": 30}
 })";
 
-// A caustic: a small bright lamp above a glass sphere that focuses it onto a textured floor.
-// Stage 1's one-sample estimate misses most of the caustic, so pixel sampling must stay unbiased
-// through its defensive mixture. 32x24; needs paths of 4+ vertices.
+// A caustic: a lamp above a glass sphere that focuses it onto a textured floor, in a spot about
+// 8x5 pixels: a stage-1 grid with no cell on the spot never sees it, so pixel sampling must stay
+// unbiased through its defensive mixture. 32x24; needs paths of 4+ vertices.
 inline constexpr const char* kCausticScene = R"({
   "materials": [
     {"name": "floor", "diffuse": {"albedo": {"procedural": {"pattern": "checker", "width": 4,

@@ -22,6 +22,7 @@ struct FdReference {
   Image target;
   RenderOptions options;  // spp and seed are set per render
   int lossSpp = 512;
+  int fdSeeds = 4;  // independent central differences averaged per component
 
   // Registers the parameters, renders the target at the truth, and sets theta = 0.8 truth.
   FdReference(const char* sceneJson, std::initializer_list<const char*> params, RenderOptions o = {}, int lossSamples = 512)
@@ -54,7 +55,7 @@ struct FdReference {
     reg.write(theta, *scene);
     MeanSE fd;
     float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
-    for (uint64_t seed = 0; seed < 4; ++seed) {
+    for (uint64_t seed = 0; seed < uint64_t(fdSeeds); ++seed) {
       auto plus = theta, minus = theta;
       plus[k] += h;
       minus[k] -= h;

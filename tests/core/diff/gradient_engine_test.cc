@@ -42,7 +42,8 @@ void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeig
   o.sppPrimal = 4;
   o.sppGradient = 4;
   GradientEngine engine(*f.scene, f.reg, {f.target}, o);
-  const int sessions = 48, burnIn = method == GradientMethod::Restir ? 3 : 0;
+  f.reg.write(f.theta, *f.scene);
+  const int sessions = 512, burnIn = method == GradientMethod::Restir ? 3 : 0;
   std::vector<test::MeanSE> grad(f.reg.size());
   for (int i = 0; i < sessions; ++i) {
     EngineSession session;
@@ -53,10 +54,10 @@ void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeig
       GradientRequest rb = r;
       rb.renderOnly = true;
       rb.step = uint64_t(b);
-      engine.evaluate(f.theta, rb, session);
+      engine.evaluate(rb, session);
     }
     r.step = uint64_t(burnIn);
-    auto g = engine.evaluate(f.theta, r, session).gradient;
+    auto g = engine.evaluate(r, session).gradient;
     for (size_t k = 0; k < g.size(); ++k) grad[k].add(g[k]);
   }
   // One albedo texel of each checker colour, the roughness, one channel of each light.
@@ -68,8 +69,11 @@ void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeig
     EXPECT_NEAR(grad[k].mean, fd.mean, test::kSigmas * se)
         << gradientMethodName(method) << " component " << k << " (" << (k < 48 ? "albedo" : k == 48 ? "roughness" : "intensity")
         << ")";
-    // The comparison must have power: the combined SE resolves a 30 % error.
-    EXPECT_LT(test::kSigmas * se, 0.3 * std::abs(fd.mean)) << gradientMethodName(method) << " component " << k;
+    // The comparison must have power: 4 combined SE are at most 10 % of the derivative, or 20 % for
+    // the plate's roughness, whose gradient is about ten times noisier (10 % would take 2000
+    // sessions, a minute per method).
+    const double power = k == 48 ? 0.2 : 0.1;
+    EXPECT_LT(test::kSigmas * se, power * std::abs(fd.mean)) << gradientMethodName(method) << " component " << k;
   }
 }
 
@@ -80,11 +84,83 @@ TEST(GradientEngine, RestirForwardOnlyMatchesFiniteDifferences) { checkMethod(Gr
 // Neighbours from the kd-tree only (what multi-view batches use), instead of last step's pixels.
 TEST(GradientEngine, RestirKdTreeNeighboursMatchFiniteDifferences) { checkMethod(GradientMethod::Restir, false, false); }
 
+// ReSTIR reuses reservoirs created at earlier parameters: the support test and the combination
+// must stay unbiased when theta changes every step, and where neighbours have different supports
+// (the plate shadows the wall from both lights, so neighbours across a shadow edge see different
+// lights). Each session renders five steps at perturbed parameters (every component moved by up
+// to 15 %, the wall's albedo at `wallDuringWarmUp`), then one gradient step at theta; returns the
+// mean over sessions and the finite differences there for the checked components.
+struct ChangingThetaCheck {
+  std::vector<size_t> components{0, 4, 6, 7, 49, 50};
+  std::vector<double> z, relativeSe;
+};
+ChangingThetaCheck restirAfterChangingTheta(float wallDuringWarmUp) {
+  Fixture& f = fixture();
+  GradientOptions o;
+  o.method = GradientMethod::Restir;
+  o.sppPrimal = 4;
+  o.sppGradient = 4;
+  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  const int sessions = 256, warm = 5;
+  std::vector<test::MeanSE> grad(f.reg.size());
+  for (int i = 0; i < sessions; ++i) {
+    EngineSession session;
+    GradientRequest r;
+    r.views = {0};
+    r.seed = 30000 + uint64_t(i);
+    for (int b = 0; b < warm; ++b) {
+      std::vector<float> moved = f.theta;
+      for (size_t k = 0; k < moved.size(); ++k) moved[k] *= 1.f + 0.15f * std::sin(float(b * 7 + int(k)) + 0.5f * float(i));
+      for (size_t c = 0; c < 48; ++c) moved[c] = wallDuringWarmUp;  // every wall texel
+      f.reg.write(moved, *f.scene);
+      GradientRequest rb = r;
+      rb.renderOnly = b % 2 == 0;  // gradient steps too: both chains advance either way
+      rb.step = uint64_t(b);
+      engine.evaluate(rb, session);
+    }
+    f.reg.write(f.theta, *f.scene);
+    r.step = uint64_t(warm);
+    auto g = engine.evaluate(r, session).gradient;
+    for (size_t k = 0; k < g.size(); ++k) grad[k].add(g[k]);
+  }
+  ChangingThetaCheck c;
+  for (size_t k : c.components) {
+    const test::MeanSE& fd = f.finiteDifference(k);
+    double se = std::sqrt(grad[k].se() * grad[k].se() + fd.se() * fd.se());
+    std::printf("restir, wall at %g before, component %2zu: gradient %+.4e (se %.1e), finite difference %+.4e (se %.1e)\n",
+                double(wallDuringWarmUp), k, grad[k].mean, grad[k].se(), fd.mean, fd.se());
+    c.z.push_back((grad[k].mean - fd.mean) / se);
+    c.relativeSe.push_back(se / std::abs(fd.mean));
+  }
+  return c;
+}
+
+// With the wall's albedo at its lower bound (the positive floor) in the steps before: unbiased, with
+// 4 SE at most 5 % of each checked derivative.
+TEST(GradientEngine, RestirStaysUnbiasedWhileThetaChangesEveryStep) {
+  ChangingThetaCheck c = restirAfterChangingTheta(kPositiveFloor);
+  for (size_t i = 0; i < c.components.size(); ++i) {
+    EXPECT_LT(std::abs(c.z[i]), test::kSigmas) << "component " << c.components[i];
+    EXPECT_LT(test::kSigmas * c.relativeSe[i], 0.05) << "component " << c.components[i] << ": cannot resolve a 5 % bias";
+  }
+}
+
+// The same check sees the bias a zero bound would cause (why the bounds stay off zero): with the
+// wall at exactly 0 before, its reservoirs had an empty support that the current-parameter support
+// test counts, and the wall's derivatives come out 10-15 % low, far outside 4 SE.
+TEST(GradientEngine, RestirCheckSeesTheBiasOfAZeroBound) {
+  ChangingThetaCheck c = restirAfterChangingTheta(0.f);
+  double worst = 0;
+  for (double z : c.z) worst = std::max(worst, std::abs(z));
+  EXPECT_GT(worst, 3 * test::kSigmas);
+}
+
 TEST(GradientEngine, DeterministicForAnyThreadCount) {
   Fixture& f = fixture();
   GradientOptions o;
   o.method = GradientMethod::Restir;
   GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  f.reg.write(f.theta, *f.scene);
   std::vector<std::vector<double>> results;
   for (int threads : {1, 2, 3}) {
     tbb::task_arena arena(threads);
@@ -93,9 +169,9 @@ TEST(GradientEngine, DeterministicForAnyThreadCount) {
       GradientRequest r;
       r.views = {0};
       r.seed = 9;
-      engine.evaluate(f.theta, r, s);
+      engine.evaluate(r, s);
       r.step = 1;
-      results.push_back(engine.evaluate(f.theta, r, s).gradient);
+      results.push_back(engine.evaluate(r, s).gradient);
     });
   }
   EXPECT_EQ(results[0], results[1]);
@@ -109,13 +185,14 @@ TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {
     o.method = GradientMethod::Restir;
     o.pixelNeighbours = pixelNeighbours;
     GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+    f.reg.write(f.theta, *f.scene);
     EngineSession s;
     GradientRequest r;
     r.views = {0};
-    auto first = engine.evaluate(f.theta, r, s);
+    auto first = engine.evaluate(r, s);
     EXPECT_EQ(first.stats.meanNeighbours, 0.0);  // nothing to reuse yet
     r.step = 1;
-    auto second = engine.evaluate(f.theta, r, s);
+    auto second = engine.evaluate(r, s);
     EXPECT_GT(second.stats.meanNeighbours, 0.9 * o.restir.neighbours) << pixelNeighbours;  // almost every point finds one
     EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 1.5) << pixelNeighbours;    // and carries its confidence
     EXPECT_GT(second.stats.reservoirs, 0u);
@@ -143,7 +220,7 @@ TEST(GradientEngine, MultiViewBatchesPreserveTheReservoirsNoViewCanSee) {
     r.step = k;
     r.views = std::move(views);
     r.renderOnly = true;
-    return engine.evaluate(p.initial, r, s).stats;
+    return engine.evaluate(r, s).stats;
   };
   EngineSession s;
   step(s, 0, {0});
@@ -186,18 +263,66 @@ TEST(GradientEngine, MultiViewBatchesPreserveTheReservoirsNoViewCanSee) {
   EXPECT_EQ(step(again, 1, {4, 0}).reservoirsPreserved, 0u);
 }
 
+// Alg. 8 with pixel mini-batches: a step that traces a quarter of the pixels replaces the
+// reservoirs of the pixels it drew and carries every other one (their view is in the batch, but
+// their pixel was not traced, so nothing replaced them). Checked against the batch's own draws:
+// an old reservoir is kept exactly when the pixel it projects to was not drawn.
+TEST(GradientEngine, PixelMiniBatchesCarryTheReservoirsOfUndrawnPixels) {
+  Fixture& f = fixture();
+  GradientOptions o;
+  o.method = GradientMethod::Restir;
+  o.pixels.sampler = PixelSampler::Uniform;
+  const int P = f.scene->width * f.scene->height;
+  o.pixels.samplesPerView = P / 4;
+  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  f.reg.write(f.theta, *f.scene);
+  EngineSession s;
+  GradientRequest r;
+  r.views = {0};
+  r.seed = 77;
+  r.renderOnly = true;
+  engine.evaluate(r, s);
+  const std::vector<StoredReservoir> old = s.primal.items();
+  ASSERT_GT(old.size(), size_t(P / 8));
+  r.step = 1;
+  GradientStats st = engine.evaluate(r, s).stats;
+  // The batch step 1 drew (the engine's own stream for it).
+  PixelMap uniform;
+  uniform.setProbabilities(std::vector<float>(size_t(P), 1.f / float(P)));
+  PixelBatch drawn = drawPixelBatch(uniform, P / 4, RngKey{streamSeed(r.seed, Stream::PixelBatch), 1, 0, 0, 0});
+  size_t expected = 0;
+  const Camera& cam = f.scene->cameras[0];
+  for (const auto& q : old) {
+    float px, py;
+    ASSERT_TRUE(cam.project(q.p, f.scene->width, f.scene->height, px, py));
+    expected += drawn.contains(size_t(py) * size_t(f.scene->width) + size_t(px)) ? 0 : 1;
+  }
+  size_t kept = 0;
+  for (const auto& q : s.primal.items())
+    for (const auto& o2 : old)
+      if (o2.tri == q.tri && o2.b1 == q.b1 && o2.b2 == q.b2 && o2.mesh == q.mesh) {
+        ++kept;
+        break;
+      }
+  std::printf("old %zu, kept %zu, expected %zu (undrawn pixels), carried by both chains %zu\n", old.size(), kept, expected,
+              st.reservoirsCarried);
+  EXPECT_EQ(kept, expected);
+  EXPECT_GT(double(kept), 0.6 * double(old.size()));  // about (1 - 1/P)^(P/4) = 78 % of the pixels go undrawn
+  EXPECT_GE(st.reservoirsCarried, kept);
+}
+
 TEST(GradientEngine, BadRequestsAreInputErrors) {
   Fixture& f = fixture();
   GradientEngine engine(*f.scene, f.reg, {f.target}, {});
+  f.reg.write(f.theta, *f.scene);
   EngineSession s;
   GradientRequest r;
-  EXPECT_THROW(engine.evaluate(f.theta, r, s), InputError);  // no views
+  EXPECT_THROW(engine.evaluate(r, s), InputError);  // no views
   r.views = {3};
-  EXPECT_THROW(engine.evaluate(f.theta, r, s), InputError);
+  EXPECT_THROW(engine.evaluate(r, s), InputError);
   r.views = {0};
-  EXPECT_THROW(engine.evaluate(std::vector<float>(3), r, s), InputError);  // wrong theta size
   GradientEngine noTarget(*f.scene, f.reg, {}, {});
-  EXPECT_THROW(noTarget.evaluate(f.theta, r, s), InputError);
+  EXPECT_THROW(noTarget.evaluate(r, s), InputError);
 }
 
 }  // namespace
@@ -221,11 +346,12 @@ TEST(GradientEngine, NonFiniteSamplesAreCountedAndDropped) {
       o.method = m;
       o.maxDepth = depth;
       GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+      f.reg.write(theta, *f.scene);
       EngineSession session;
       GradientRequest r;
       r.views = {0};
       r.seed = 9;
-      GradientResult g = engine.evaluate(theta, r, session);
+      GradientResult g = engine.evaluate(r, session);
       EXPECT_GT(g.stats.nonFiniteSamples, 0u) << gradientMethodName(m) << " depth " << depth;
       EXPECT_TRUE(std::isfinite(g.stats.loss)) << gradientMethodName(m) << " depth " << depth;
       size_t nonFinite = 0;

@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include "core/math/rng.h"
 #include "core/scene/texture.h"
+#include "test_util.h"
+
+#include <cstdio>
 
 namespace invr {
 namespace {
@@ -26,6 +30,33 @@ TEST(Loss, AdjointsMatchFiniteDifferences) {
     }
   }
   EXPECT_THROW(lossKindFromName("l3"), std::exception);
+}
+
+// The reported loss: from two independent noisy renders of the image E, (I1 - T)(I2 - T) has
+// expectation loss(E) (l2, relative_l2), while one render's (I - T)^2 has loss(E) + its variance.
+// Means over 4000 noise draws (uniform noise of half-width 0.3: variance 0.03 per value), within
+// 4 standard errors; the single-render figure is off by the variance, far outside them.
+TEST(Loss, TwoRenderLossIsUnbiased) {
+  Image E(4, 3, 3), T(4, 3, 3);
+  for (size_t i = 0; i < E.data().size(); ++i) {
+    E.data()[i] = 0.3f + 0.05f * float(i % 7);
+    T.data()[i] = 0.4f + 0.03f * float(i % 5);
+  }
+  for (LossKind k : {LossKind::L2, LossKind::RelativeL2}) {
+    const double truth = imageLoss(k, E, T, nullptr);
+    test::MeanSE two, one;
+    Sampler noise(RngKey{11, 0, 0, 0, 0});
+    for (int r = 0; r < 4000; ++r) {
+      Image a = E, b = E;
+      for (float& v : a.data()) v += 0.6f * (noise.next1D() - 0.5f);
+      for (float& v : b.data()) v += 0.6f * (noise.next1D() - 0.5f);
+      two.add(unbiasedImageLoss(k, a, b, T));
+      one.add(imageLoss(k, a, T, nullptr));
+    }
+    std::printf("%s: loss(E) %.5f, two renders %.5f (se %.5f), one render %.5f\n", lossName(k), truth, two.mean, two.se(), one.mean);
+    EXPECT_NEAR(two.mean, truth, test::kSigmas * two.se()) << lossName(k);
+    EXPECT_GT(std::abs(one.mean - truth), 10 * test::kSigmas * one.se()) << lossName(k) << ": the single-render bias should show";
+  }
 }
 
 TEST(TextureAdjoint, BilinearWeightsAreTheDerivative) {

@@ -48,6 +48,51 @@ TEST(Problem, JobMistakesNameTheField) {
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial": 0.3}]})"), "");
 }
 
+// A parameter at 0 changes which light samples ReSTIR's reused reservoirs could have produced:
+// the default bounds keep albedos and intensities above 0, and an explicit 0 with ReSTIR is refused
+// (other methods accept it). The scene's own values start inside the bounds.
+TEST(Problem, RestirKeepsParametersOffZero) {
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "lower": 0}]})"),
+                  "optimization.parameters[0].lower: must be above 0 with method METHOD_RESTIR");
+  EXPECT_MENTIONS(errorOf(R"({"method": "METHOD_RESTIR", "parameters": [{"name": "materials/red/albedo"}, {"name": "lights/ceiling_light/intensity", "lower": 0}]})"),
+                  "optimization.parameters[1].lower");
+  EXPECT_EQ(errorOf(R"({"method": "METHOD_RIS", "parameters": [{"name": "materials/red/albedo", "lower": 0}]})"), "");
+  auto job = parseJobJson(R"({"zoo": "cornell", "optimization": {"parameters": [{"name": "materials/red/albedo"}]}})", "job.json");
+  Problem p = buildProblem(job);
+  EXPECT_EQ(p.params.slots()[0].lower, kPositiveFloor);
+  for (float v : p.initial) EXPECT_GE(v, kPositiveFloor);
+}
+
+// Targets, gradients and final renders share one light transport: a job whose render block asks
+// for another depth is refused, naming both fields; the transport follows optimization.max_depth.
+TEST(Problem, OneLightTransportForTargetsGradientsAndRenders) {
+  auto with = [](const std::string& render, const std::string& optimization) {
+    try {
+      auto job = parseJobJson(R"({"zoo": "cornell", "render": )" + render + R"(, "optimization": )" + optimization + "}", "job.json");
+      buildProblem(job);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  const std::string albedo = R"("parameters": [{"name": "materials/red/albedo"}])";
+  std::string err = with(R"({"max_depth": 3})", "{" + albedo + "}");
+  EXPECT_MENTIONS(err, "render.max_depth (3)");
+  EXPECT_MENTIONS(err, "optimization.max_depth (1");
+  EXPECT_MENTIONS(with(R"({"max_depth": 1})", R"({"method": "METHOD_PT", "max_depth": 4, )" + albedo + "}"), "render.max_depth (1)");
+  EXPECT_EQ(with(R"({"max_depth": 4, "spp": 8})", R"({"method": "METHOD_PT", "max_depth": 4, )" + albedo + "}"), "");
+  EXPECT_EQ(with(R"({"spp": 8})", R"({"method": "METHOD_PT", "max_depth": 4, )" + albedo + "}"), "");
+  auto job = parseJobJson(R"({"zoo": "cornell", "optimization": {"method": "METHOD_PT", "max_depth": 4, )" + albedo + "}}", "job.json");
+  Problem p = buildProblem(job);
+  for (Stream s : {Stream::Target, Stream::FinalRender, Stream::ImageError}) {
+    RenderOptions ro = transportRenderOptions(p, 16, s);
+    EXPECT_EQ(ro.maxDepth, 4);
+    EXPECT_EQ(ro.estimator, LightEstimator::NeeMis);
+  }
+  EXPECT_EQ(targetRenderOptions(p).maxDepth, 4);
+  EXPECT_NE(transportRenderOptions(p, 16, Stream::Target).seed, transportRenderOptions(p, 16, Stream::FinalRender).seed);
+}
+
 TEST(Problem, InitialValuesAndBatchesAreDeterministic) {
   auto job = zooJob("backlit");
   job.mutable_optimization()->set_target_spp(4);

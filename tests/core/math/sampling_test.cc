@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <cmath>
 #include <vector>
 
@@ -18,6 +20,23 @@ TEST(Rng, SameKeySameStreamDifferentKeyDifferentStream) {
     EXPECT_GE(va, 0.f);
     EXPECT_LT(va, 1.f);
   }
+}
+
+// Streams are keyed by (seed, stream) as a pair: no stream of any seed in 0..4095 equals any
+// other (seed, stream)'s, in particular neighbouring seeds share none (seed * 2 + pass would make
+// seed s's stage-1 streams seed s + 1's primal and derivative ones).
+TEST(Rng, NeighbouringSeedsShareNoStream) {
+  std::set<uint64_t> seen;
+  const Stream all[] = {Stream::Primal, Stream::Derivative, Stream::Stage1Primal, Stream::Stage1Derivative, Stream::Target,
+                        Stream::PixelBatch, Stream::ViewBatch, Stream::FinalRender, Stream::ImageError};
+  for (uint64_t seed = 0; seed < 4096; ++seed)
+    for (Stream s : all) EXPECT_TRUE(seen.insert(streamSeed(seed, s)).second) << "seed " << seed << " stream " << uint64_t(s);
+  // The first numbers of neighbouring seeds' streams differ too (not only their keys).
+  for (Stream a : all)
+    for (Stream b : all) {
+      Sampler x(RngKey{streamSeed(7, a), 3, 0, 5, 0}), y(RngKey{streamSeed(8, b), 3, 0, 5, 0});
+      EXPECT_NE(x.nextBits(), y.nextBits());
+    }
 }
 
 TEST(Rng, UniformMeanAndVariance) {

@@ -1,13 +1,14 @@
-// Where the paper's baseline fails, a test shows it (Wang et al. 2023, §7): on `ajar` (a painting
-// lit through a nearly closed door) one light sample per pixel gives gradients so noisy that
-// Adam walks the texture away from the truth, while ReSTIR's reused reservoirs keep improving it.
-// Seeds are fixed, so the run is deterministic. The margins come from three seeds (1, 2, 3) at
-// 150 steps: PT ended at 1.051-1.056x its starting error, ReSTIR at 0.937-0.960x with nearest-
-// neighbour reuse and 0.88-0.91x since reuse tries a random nearby pixel's reservoir first (ratio
-// 1.10-1.12, now 1.16 on seed 1); the asserted margins leave room on either side.
+// What ReSTIR guarantees where the paper's baselines fail (Wang et al. 2023, §7): its reused
+// reservoirs keep the gradients clean enough that Adam converges on `ajar` (a painting lit
+// through a nearly closed door) and `oxalis` (texels lit only by a dim fill light). The tests
+// assert ReSTIR's convergence; the baseline's failure (PT drifting or stalling) is printed and
+// recorded as a figure of the run (`pt_ratio` in the test's XML), not asserted: it is the
+// baseline's behaviour, and a better baseline is not a regression of ours. Seeds are fixed, so the
+// run is deterministic; the margins below come from seeds 1, 2 and 3 at 150 steps.
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <string>
 
 #include "core/diff/zoo_jobs.h"
 #include "core/optim/local_run.h"
@@ -38,22 +39,22 @@ Outcome ptAndRestir(const char* scene) {
   return o;
 }
 
-TEST(Stability, OnAjarPtDriftsAwayWhileRestirConverges) {
+// ReSTIR at 150 steps ended at 0.88-0.91x the starting error (seeds 1-3); PT at 1.05x (it drifts).
+TEST(Stability, OnAjarRestirConverges) {
   Outcome o = ptAndRestir("ajar");
-  EXPECT_GT(o.pt, 1.03 * o.initial) << "PT no longer drifts: the baseline's failure case moved";
-  EXPECT_LT(o.restir, 0.98 * o.initial) << "ReSTIR stopped improving on ajar";
-  EXPECT_GT(o.pt / o.restir, 1.05);
+  ::testing::Test::RecordProperty("pt_ratio", std::to_string(o.pt / o.initial));
+  ::testing::Test::RecordProperty("restir_ratio", std::to_string(o.restir / o.initial));
+  EXPECT_LT(o.restir, 0.96 * o.initial) << "ReSTIR stopped improving on ajar";
 }
 
 // On oxalis the dim fill gets 2 % of light selection, so PT's one light sample rarely finds it and
-// its gradients for the texels only the fill lights are heavy-tailed enough to bias Adam there:
-// PT's error hardly moves while ReSTIR's reused fill samples take it to a third. Seeds 1, 2, 3 at
-// 150 steps: PT ended at 0.937-0.963x its starting error, ReSTIR at 0.303-0.304x.
-TEST(Stability, OnOxalisPtStallsWhileRestirConverges) {
+// its gradients for the texels only the fill lights are heavy-tailed (PT's error hardly moves:
+// 0.94-0.96x). ReSTIR's reused fill samples take it to 0.30x.
+TEST(Stability, OnOxalisRestirConverges) {
   Outcome o = ptAndRestir("oxalis");
-  EXPECT_GT(o.pt, 0.9 * o.initial) << "PT no longer stalls on oxalis: the baseline's failure case moved";
+  ::testing::Test::RecordProperty("pt_ratio", std::to_string(o.pt / o.initial));
+  ::testing::Test::RecordProperty("restir_ratio", std::to_string(o.restir / o.initial));
   EXPECT_LT(o.restir, 0.4 * o.initial) << "ReSTIR stopped converging on oxalis";
-  EXPECT_GT(o.pt / o.restir, 2.5);
 }
 
 }  // namespace

@@ -1,0 +1,38 @@
+// How the gradient engine estimates a step: the interior estimator (PT, RIS or ReSTIR), its
+// sample counts, the loss and which pixels a step traces.
+#pragma once
+
+#include <string>
+
+#include "core/diff/loss.h"
+#include "core/diff/pixel_sampler.h"
+#include "core/restir/direct_restir.h"
+
+namespace invr {
+
+enum class GradientMethod { Pt, Ris, Restir };
+GradientMethod gradientMethodFromName(const std::string& name);  // throws InputError
+const char* gradientMethodName(GradientMethod m);
+
+struct GradientOptions {
+  GradientMethod method = GradientMethod::Restir;
+  RestirSettings restir;      // candidates and visibility also apply to ris
+  // Neighbour search radius in pixels: at a shading point at distance t the world radius is
+  // radiusPixels * t * 2 tan(fov/2) / height, so reuse stays local whatever the scene's scale.
+  float radiusPixels = 3.f;
+  bool forwardOnly = false;   // restir in the primal pass only
+  bool preserveOccluded = true;  // keep reservoirs no view of the batch sees (Alg. 8)
+  // Look for ReSTIR neighbours among last step's pixels first when last step rendered the view
+  // (see ReSTIR's estimator); false always searches the kd-tree (tests and benchmarks of that path).
+  bool pixelNeighbours = true;
+  int sppPrimal = 1;
+  int sppGradient = 1;
+  LossKind loss = LossKind::L2;
+  // Path vertices after the camera. 1: direct illumination with the method's light sampling;
+  // > 1: path tracing with NEE + MIS at every vertex (method pt).
+  int maxDepth = 1;
+  int russianRouletteDepth = 3;
+  PixelSamplingOptions pixels;  // which pixels a step traces (all, or a mini-batch)
+};
+
+}  // namespace invr

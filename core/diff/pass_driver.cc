@@ -1,0 +1,124 @@
+#include "core/diff/pass_driver.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <mutex>
+
+#include "core/error.h"
+
+namespace invr {
+
+struct GradientScratchPool::Impl {
+  tbb::enumerable_thread_specific<GradientScratch> local;
+};
+GradientScratchPool::GradientScratchPool(size_t parameters) : impl_(new Impl{tbb::enumerable_thread_specific<GradientScratch>(GradientScratch(parameters))}) {}
+GradientScratchPool::~GradientScratchPool() = default;
+GradientScratch& GradientScratchPool::local() { return impl_->local.local(); }
+
+namespace {
+
+// Squared norm of one sample's derivative, entries of the same parameter summed first.
+double squaredNorm(std::vector<std::pair<uint32_t, float>> entries) {
+  std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  double sq = 0, run = 0;
+  for (size_t i = 0; i < entries.size(); ++i) {
+    run += double(entries[i].second);
+    if (i + 1 == entries.size() || entries[i + 1].first != entries[i].first) {
+      sq += run * run;
+      run = 0;
+    }
+  }
+  return sq;
+}
+
+}  // namespace
+
+PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const PassSpec& spec, GradientScratchPool& scratchPool,
+                   std::vector<double>* gradient) {
+  const int W = scene.width, H = scene.height;
+  const int spp = spec.spp;
+  const Camera& cam = scene.cameras[size_t(spec.view)];
+  const bool derivative = spec.kind == PassKind::Derivative, stage1 = spec.kind == PassKind::Stage1;
+  if (derivative && (!gradient || !spec.adjoint)) throw std::logic_error("runPass: a derivative pass needs an adjoint and a gradient");
+  constexpr int kTile = 16;
+  const int tilesX = (W + kTile - 1) / kTile, tilesY = (H + kTile - 1) / kTile;
+  std::vector<TileGradient> tiles(derivative ? size_t(tilesX) * size_t(tilesY) : 0);
+  PassOutput res;
+  res.image = Image(W, H, 3);
+  if (stage1) res.derivSq.assign(size_t(W) * size_t(H), 0.f);
+  std::mutex mergeMutex;
+  std::atomic<bool> cancelled{false};
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, tilesX * tilesY), [&](const tbb::blocked_range<int>& range) {
+    SampleCounters counters;
+    SampleDrops drops;
+    PathGradient pixelGrad;  // every kept sample of the current pixel
+    GradientScratch* scratch = derivative ? &scratchPool.local() : nullptr;
+    for (int tile = range.begin(); tile < range.end(); ++tile) {
+      // Cancellation is checked per 16x16 tile (TBB's chunks hold many tiles).
+      if (cancelled.load(std::memory_order_relaxed) || (spec.cancel && spec.cancel->load(std::memory_order_relaxed))) {
+        cancelled = true;
+        break;
+      }
+      const int tx = tile % tilesX, ty = tile / tilesX;
+      for (int y = ty * kTile; y < std::min(H, (ty + 1) * kTile); ++y)
+        for (int x = tx * kTile; x < std::min(W, (tx + 1) * kTile); ++x) {
+          const uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
+          StoredReservoir* slots = spec.reservoirs ? spec.reservoirs + size_t(pixel) * size_t(spp) : nullptr;
+          if (slots)  // every slot is written: the buffer is recycled from an older step
+            for (int s = 0; s < spp; ++s) slots[s].mesh = UINT32_MAX;
+          if (spec.batch && !spec.batch->contains(size_t(pixel))) continue;  // not in this mini-batch
+          const uint64_t pixelHash = RngKey{spec.stream, spec.step, uint64_t(spec.view), pixel, 0}.pixelHash();
+          // A pixel drawn c times into the mini-batch gets c times the samples, each on a stream of
+          // its own (see PixelBatch); only the first draw's reservoirs are stored.
+          const int samples = spp * int(spec.batch ? spec.batch->draws[size_t(pixel)] : 1u);
+          const Rgb adjoint = derivative ? spec.adjoint->rgb(x, y) / float(samples) : stage1 ? Rgb(1.f) : Rgb(0.f);
+          PathGradient* grad = derivative || stage1 ? &pixelGrad : nullptr;
+          double acc[3] = {0, 0, 0};
+          int kept = 0;
+          for (int sample = 0; sample < samples; ++sample) {
+            CameraSampleInput in;
+            in.x = x;
+            in.y = y;
+            in.pixel = pixel;
+            in.slot = sample % spp;
+            Sampler sampler(RngKey::withSample(pixelHash, uint64_t(sample)));
+            in.o = cam.eye;
+            in.d = cam.direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
+            const size_t mark = pixelGrad.size();
+            Rgb v = estimator.sample(in, sampler, counters, adjoint, grad, slots && sample < spp ? &slots[in.slot] : nullptr);
+            if (!isFinite(v) || (grad && !pixelGrad.finiteFrom(mark))) {
+              ++(spec.kind == PassKind::Primal ? drops.primal : derivative ? drops.derivative : drops.stage1);
+              pixelGrad.truncate(mark);
+              continue;
+            }
+            ++kept;
+            acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
+            if (stage1) {  // one sample's squared derivative norm (one sample per cell)
+              res.derivSq[size_t(pixel)] += float(squaredNorm(pixelGrad.entries()));
+              pixelGrad.clear();
+            }
+          }
+          if (kept > 0) res.image.setRgb(x, y, Rgb(float(acc[0] / kept), float(acc[1] / kept), float(acc[2] / kept)));
+          // The adjoint was split over all samples; the kept ones carry the whole pixel.
+          if (derivative) scratch->commit(pixelGrad, kept > 0 ? float(samples) / float(kept) : 0.f);
+        }
+      if (derivative) scratch->flush(tiles[size_t(tile)]);
+    }
+    std::lock_guard lock(mergeMutex);  // integer counters: order does not matter
+    res.rays += counters.rays;
+    res.drops += drops;
+    res.restir.neighboursUsed += counters.restir.neighboursUsed;
+    res.restir.shadingPoints += counters.restir.shadingPoints;
+    res.restir.sumM += counters.restir.sumM;
+  });
+  if (cancelled) throw EvaluationCancelled{};
+  if (derivative)
+    for (auto& t : tiles) t.reduceInto(*gradient);  // fixed tile order: deterministic for any thread count
+  return res;
+}
+
+}  // namespace invr

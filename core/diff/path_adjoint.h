@@ -1,0 +1,99 @@
+// The derivative visitor of the shared walk (core/render/path_walk.h): adjoint * dL/dtheta of one
+// path for material and light parameters, where L is the path's radiance and `adjoint` is dLoss/dI
+// of its pixel. At each vertex it backpropagates through
+//   - the direct-light sample there:  d(f|cos|)(wo, wl) * weight * Le, and d Le,
+//   - emission reached there:         d Le,
+//   - the continuation:               d(f|cos|)(wo, wi) * (L - radiance gathered so far) / (f|cos|)(wo, wi),
+// because everything gathered after a vertex carries that vertex's f|cos|/pdf once. The first two
+// are known when the walk reaches them; continuation terms need the radiance gathered after the
+// vertex, so the visitor keeps one small record per non-delta bounce (its BSDF derivatives, f and
+// the radiance gathered so far) and replays those records in finish(), once L is known. This is
+// path replay (Vicini et al. 2021) without the second walk: the record costs O(depth) memory per
+// path, the random numbers are consumed once. Pdfs, MIS and roulette weights are detached.
+#pragma once
+
+#include <cassert>
+#include <new>
+
+#include "core/diff/bsdf_adjoint.h"
+#include "core/render/path_walk.h"
+
+namespace invr {
+
+class PathAdjointVisitor {
+ public:
+  PathAdjointVisitor(const Scene& scene, const ParameterRegistry& params, Rgb adjoint, PathGradient& grad)
+      : scene_(scene), params_(params), adjoint_(adjoint), grad_(grad) {}
+
+  void emission(Rgb weight, Rgb Le, const LightSampleRef& light, float perUnit) {
+    L_ += weight * Le;
+    if (perUnit > 0.f) lightGradient(light.light, weight * perUnit);
+  }
+  void direct(Rgb beta, const DirectPath& p, const WalkVertex& v) {
+    L_ += beta * p.contribution();
+    if (p.throughBsdf && hasBsdfParameters(params_, v.material))
+      addBsdfGradient(params_, scene_, v.material, v.hit->uv, v.bsdf->evalDerivatives(v.wo, p.wiLocal),
+                      adjoint_ * beta * p.weight * p.emission, grad_);
+    if (p.emissionPerUnit > 0.f) lightGradient(p.light.light, beta * p.weight * p.bsdfValue * p.emissionPerUnit);
+  }
+  void bounce(const WalkVertex& v, Vec3 wi) {
+    if (!hasBsdfParameters(params_, v.material)) return;
+    assert(count_ < size_t(kMaxWalkDepth));  // one bounce per depth; max_depth is at most 64
+    if (count_ < size_t(kMaxWalkDepth))
+      new (&pending_[count_++ * sizeof(Pending)]) Pending{v.material, v.hit->uv, v.bsdf->evalDerivatives(v.wo, wi), v.bsdf->eval(v.wo, wi), L_};
+  }
+  // The path's radiance (complete once the walk returned).
+  Rgb radiance() const { return L_; }
+  // Adds the continuation terms; call once, after the walk.
+  void finish() {
+    for (size_t i = 0; i < count_; ++i) {
+      const Pending& b = *std::launder(reinterpret_cast<const Pending*>(&pending_[i * sizeof(Pending)]));
+      Rgb after = L_ - b.gathered;
+      Rgb ratio(b.f.x > 0.f ? after.x / b.f.x : 0.f, b.f.y > 0.f ? after.y / b.f.y : 0.f, b.f.z > 0.f ? after.z / b.f.z : 0.f);
+      addBsdfGradient(params_, scene_, b.material, b.uv, b.dd, adjoint_ * ratio, grad_);
+    }
+    count_ = 0;
+  }
+
+ private:
+  struct Pending {  // trivially destructible: never destroyed
+    int material;
+    Vec2 uv;
+    BsdfDerivatives dd;
+    Rgb f, gathered;
+  };
+  void lightGradient(uint32_t light, Rgb perUnitContribution) {
+    int off = params_.intensityOffset(int(light));
+    if (off < 0) return;
+    Rgb g = adjoint_ * perUnitContribution;
+    for (int c = 0; c < 3; ++c) grad_.add(uint32_t(off + c), g[c]);
+  }
+
+  const Scene& scene_;
+  const ParameterRegistry& params_;
+  Rgb adjoint_;
+  PathGradient& grad_;
+  Rgb L_{0.f};
+  // One per non-delta bounce through a material with parameters: raw stack storage, constructed
+  // on use (no allocation or clearing per path).
+  alignas(Pending) unsigned char pending_[sizeof(Pending) * kMaxWalkDepth];
+  size_t count_ = 0;
+};
+
+// One camera path: its radiance and, with `grad` set, adjoint * dL/dtheta added to it. The walk is
+// the same with and without `grad` (equal samplers give equal radiance).
+template <class Direct>
+Rgb walkCameraPath(const Scene& scene, const ParameterRegistry* params, Vec3 o, Vec3 d, Sampler& sampler, const WalkSettings& s,
+                   Direct& direct, PathContext* ctx, Rgb adjoint = Rgb(0.f), PathGradient* grad = nullptr) {
+  if (!grad) {
+    RadianceVisitor v;
+    walkPath(scene, o, d, sampler, s, direct, v, ctx);
+    return v.L;
+  }
+  PathAdjointVisitor v(scene, *params, adjoint, *grad);
+  walkPath(scene, o, d, sampler, s, direct, v, ctx);
+  v.finish();
+  return v.radiance();
+}
+
+}  // namespace invr

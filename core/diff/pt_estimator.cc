@@ -1,0 +1,35 @@
+// Baseline B.1 (and every path longer than direct illumination): one light sample chosen by power
+// plus a BSDF sample, combined with the power heuristic at every vertex, Russian roulette after
+// russianRouletteDepth bounces.
+#include "core/diff/interior_estimator.h"
+#include "core/diff/path_adjoint.h"
+
+namespace invr {
+
+namespace {
+
+class PtEstimator final : public InteriorEstimator {
+ public:
+  explicit PtEstimator(const EstimatorSetup& s) : scene_(s.scene), params_(s.params) {
+    walk_.maxDepth = s.options.maxDepth;
+    walk_.russianRouletteDepth = s.options.russianRouletteDepth;
+    walk_.bsdfMis = true;
+  }
+  Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
+             StoredReservoir*) const override {
+    PathContext ctx{&counters.rays, nullptr};
+    NeeMisDirect direct{scene_};
+    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad);
+  }
+
+ private:
+  const Scene& scene_;
+  const ParameterRegistry& params_;
+  WalkSettings walk_;
+};
+
+}  // namespace
+
+std::unique_ptr<InteriorEstimator> makePtEstimator(const EstimatorSetup& s) { return std::make_unique<PtEstimator>(s); }
+
+}  // namespace invr

@@ -1,0 +1,141 @@
+// The one random walk every path-space estimator in invr shares: the forward renderer, the
+// gradient engine's PT / RIS / ReSTIR camera samples and the multi-bounce derivatives visit it.
+// Emission, the BSDF half of MIS, shading-normal rejection and Russian roulette are written here
+// once; what differs between uses is
+//   - the direct-light strategy at each vertex (NEE + MIS, streaming RIS, ReSTIR), a callable
+//       bool direct(const ShadingPoint&, int depth, Sampler&, PathContext*, DirectPath& out);
+//   - the visitor that receives every contribution with the factors it needs:
+//       emission(Rgb weight, Rgb Le, const LightSampleRef& light, float perUnit)
+//       direct(Rgb beta, const DirectPath& p, const WalkVertex& v)
+//       bounce(const WalkVertex& v, Vec3 wiLocal)         (non-delta continuations only)
+// Random numbers are consumed in a fixed order, so equal samplers walk equal paths.
+#pragma once
+
+#include "core/render/direct_light.h"
+
+namespace invr {
+
+// Longest walk any setting allows (max_depth is validated against it).
+inline constexpr int kMaxWalkDepth = 64;
+
+struct WalkSettings {
+  int maxDepth = 1;              // path vertices after the camera; 1 = direct illumination
+  int russianRouletteDepth = 3;  // roulette after this many bounces
+  // true: the direct strategy is NEE + MIS, so emission reached through a non-delta lobe is
+  // weighted by the BSDF half of the power heuristic. false (RIS, ReSTIR): the direct strategy
+  // alone accounts for emission seen through non-delta lobes.
+  bool bsdfMis = true;
+};
+
+// One surface vertex as a visitor sees it.
+struct WalkVertex {
+  const SurfaceHit* hit;
+  const Bsdf* bsdf;
+  int material;
+  Vec3 wo;  // local
+  int depth;
+};
+
+template <class Direct, class Visitor>
+void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSettings& s, Direct& direct, Visitor& v,
+              PathContext* ctx) {
+  Rgb beta(1.f);
+  bool specular = true;  // the camera or a delta lobe: emission is not covered by the direct strategy
+  float prevBsdfPdf = 0.f;
+  Vec3 prevP = o;
+  const auto& select = scene.lightSelection();
+  for (int depth = 0;; ++depth) {
+    if (ctx && ctx->stats) ++(depth == 0 ? ctx->stats->camera : ctx->stats->bounce);
+    if (ctx && ctx->record) ctx->record->push_back({o, d, std::numeric_limits<float>::infinity(), false});
+    SurfaceHit hit;
+    if (!scene.intersect(o, d, hit)) {
+      if (!specular && !s.bsdfMis) return;
+      for (uint32_t li : scene.infiniteLights()) {
+        const Light& l = scene.lights[li];
+        Rgb Le = environmentRadiance(l, d);
+        if (isBlack(Le)) continue;
+        float w = specular ? 1.f : powerHeuristic(prevBsdfPdf, select.pmf(li) * environmentPdf(l, d));
+        LightSampleRef ref;
+        ref.light = li;
+        ref.setDirection(d);
+        v.emission(beta * w, Le, ref, l.kind == LightKind::ConstantEnvironment ? l.scale : 0.f);
+      }
+      return;
+    }
+    if (int li = scene.meshLight[hit.mesh]; li >= 0 && (specular || s.bsdfMis)) {
+      const Light& l = scene.lights[size_t(li)];
+      Rgb Le = areaEmission(l, hit.ng, -d);
+      if (!isBlack(Le)) {
+        float w = specular ? 1.f : powerHeuristic(prevBsdfPdf, select.pmf(size_t(li)) * areaLightPdf(l, prevP, hit.p, hit.ng));
+        LightSampleRef ref;
+        ref.light = uint32_t(li);
+        ref.tri = hit.tri;
+        ref.b1 = hit.b1;
+        ref.b2 = hit.b2;
+        v.emission(beta * w, Le, ref, l.scale);
+      }
+    }
+    if (depth >= s.maxDepth) return;
+
+    const int material = scene.meshMaterial[hit.mesh];
+    const Bsdf bsdf = scene.materials[size_t(material)].at(hit.uv);
+    ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
+    sp.wo = sp.frame.toLocal(-d);
+    const WalkVertex vx{&hit, &bsdf, material, sp.wo, depth};
+    if (!bsdf.isDelta()) {
+      DirectPath p;
+      if (direct(sp, depth, sampler, ctx, p)) v.direct(beta, p, vx);
+    }
+    // At the last vertex the continuation only adds emission: needed for the BSDF half of MIS and
+    // after delta lobes; without MIS the direct strategy covers what rough lobes see.
+    if (depth + 1 >= s.maxDepth && !s.bsdfMis && !bsdf.isDelta()) return;
+
+    float uc = sampler.next1D();
+    Vec2 u(sampler.next1D(), sampler.next1D());
+    auto bs = bsdf.sample(sp.wo, uc, u);
+    if (!bs) return;
+    Vec3 wi = sp.frame.toWorld(bs->wi);
+    // Shading normals can send a reflection below the geometric surface (or the reverse): drop it.
+    float side = dot(wi, hit.ng) * dot(-d, hit.ng);
+    if (bs->transmitted ? side >= 0.f : side <= 0.f) return;
+    if (!bs->delta) v.bounce(vx, bs->wi);
+    beta *= bs->weight;
+    specular = bs->delta;
+    prevBsdfPdf = bs->pdf;
+    prevP = hit.p;
+    o = offsetOrigin(hit.p, hit.ng, wi);
+    d = wi;
+    if (depth + 1 >= s.russianRouletteDepth) {
+      float q = std::min(1.f, maxComponent(beta));
+      if (!(sampler.next1D() < q)) return;
+      beta = beta / q;
+    }
+  }
+}
+
+// Radiance only (the forward renderer and primal passes).
+struct RadianceVisitor {
+  Rgb L{0.f};
+  void emission(Rgb weight, Rgb Le, const LightSampleRef&, float) { L += weight * Le; }
+  void direct(Rgb beta, const DirectPath& p, const WalkVertex&) { L += beta * p.contribution(); }
+  void bounce(const WalkVertex&, Vec3) {}
+};
+
+// Direct-light strategies of the forward renderer.
+struct NeeMisDirect {
+  const Scene& scene;
+  bool operator()(const ShadingPoint& sp, int, Sampler& sampler, PathContext* ctx, DirectPath& out) const {
+    return sampleDirectNee(scene, sp, sampler, ctx, out);
+  }
+};
+
+struct RisDirect {
+  const Scene& scene;
+  int candidates;
+  bool visibilityInTarget;
+  bool operator()(const ShadingPoint& sp, int, Sampler& sampler, PathContext* ctx, DirectPath& out) const {
+    return sampleDirectRis(scene, sp, sampler, candidates, visibilityInTarget, ctx, out);
+  }
+};
+
+}  // namespace invr
