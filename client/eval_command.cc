@@ -28,7 +28,7 @@
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/optim/equal_time.h"
-#include "core/optim/figures.h"
+#include "client/figures.h"
 
 namespace invr::cli {
 

@@ -11,7 +11,7 @@
 #include "core/diff/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
-#include "core/optim/figures.h"
+#include "client/figures.h"
 #include "core/optim/local_run.h"
 #include "core/optim/results_io.h"
 #include "core/render/renderer.h"

@@ -9,7 +9,7 @@
 #include "client/exit_codes.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
-#include "server/wire.h"
+#include "proto/wire/wire.h"
 
 namespace invr::cli {
 
@@ -97,6 +97,12 @@ v1::SubmitJobResponse ServiceClient::submit(const v1::JobSpec& job, const std::s
   req.set_request_id(requestId);
   *req.mutable_spec() = job;
   return unary<v1::SubmitJobResponse>(*stub_, &v1::InvrService::Stub::SubmitJob, req, "submit");
+}
+
+v1::JobPlan ServiceClient::plan(const v1::JobSpec& job) {
+  v1::PlanJobRequest req;
+  *req.mutable_spec() = job;
+  return unary<v1::JobPlan>(*stub_, &v1::InvrService::Stub::PlanJob, req, "plan");
 }
 
 v1::JobStatus ServiceClient::get(const std::string& job) {

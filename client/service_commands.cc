@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <random>
@@ -22,11 +23,12 @@
 #include "client/progress.h"
 #include "client/service_client.h"
 #include "core/diff/memory_model.h"
+#include "core/diff/plan.h"
 #include "core/diff/problem.h"
-#include "core/optim/figures.h"
+#include "client/figures.h"
 #include "core/restir/reservoir_store.h"
 #include "server/server.h"
-#include "server/sha256.h"
+#include "proto/wire/sha256.h"
 
 #include <google/protobuf/io/coded_stream.h>
 #include <google/protobuf/io/zero_copy_stream_impl_lite.h>
@@ -37,6 +39,29 @@ namespace invr::cli {
 namespace v1 = invr::v1;
 
 namespace {
+
+// A job's results, and the chart of its convergence CSV drawn here (the server writes the CSV;
+// charts are the client's). A machine without matplotlib still gets every file the server has.
+int fetchResults(ServiceClient& c, const std::string& job, const std::filesystem::path& dir) {
+  int n = c.fetchAll(job, dir);
+  const std::filesystem::path csv = dir / "convergence.csv";
+  if (!std::filesystem::exists(csv)) return n;
+  bool paramError = false;  // -1 when the job has no ground truth: chart the loss instead
+  {
+    std::ifstream in(csv);
+    std::string line;
+    std::getline(in, line);
+    if (std::getline(in, line)) paramError = line.substr(line.rfind(',') + 1).rfind('-', 0) != 0;
+  }
+  try {
+    drawConvergenceChart({csv}, dir / "convergence.png", "seconds", paramError ? "param_error" : "loss");
+    ++n;
+  } catch (const std::exception& e) {
+    std::cerr << "invr: no convergence chart: " << e.what() << "\n";
+  }
+  return n;
+}
+
 
 // Ctrl-C: a waiting thread turns SIGINT into a flag (gRPC calls are cancelled from threads, never
 // from a signal handler). Call it before any gRPC object exists, so every thread gRPC starts
@@ -147,64 +172,27 @@ std::string where(const std::filesystem::path& dir) { return std::filesystem::ab
 
 // ------------------------------------------------------------------------------- plan
 
-void printPlan(const v1::JobSpec& job, const std::filesystem::path& baseDir) {
+// The threads each local worker of `invr run` gets on this machine (see runJob).
+unsigned embeddedWorkerThreads(size_t shards, int workersAsked) {
+  int cores = int(std::max(1u, std::thread::hardware_concurrency()));
+  int workers = workersAsked > 0 ? workersAsked : std::max(2, cores);
+  int busy = std::min<int>(workers, int(shards));
+  return unsigned(std::max(1, cores / std::max(1, busy)));
+}
+
+// Without a server: the plan for `invr run`'s local workers on this machine. With one: the
+// server's answer (the same validation as a submission, memory for its workers' threads).
+void printPlan(v1::JobSpec job, const std::filesystem::path& baseDir, const std::string& server) {
+  if (!server.empty()) {
+    ServiceClient c(server);
+    c.uploadAssets(job, baseDir);
+    std::cout << c.plan(job).text();
+    return;
+  }
   AssetResolver assets;
   assets.baseDir = baseDir;
-  Problem p = buildProblem(job, assets);
-  const Scene& s = *p.scene;
-  size_t pixels = size_t(s.width) * size_t(s.height);
-  size_t tris = 0;
-  for (const auto& m : s.meshes) tris += m.triangleCount();
-  std::cout << "job " << job.name() << ": scene " << (job.has_zoo() ? job.zoo() : s.name.empty() ? std::string("(inline)") : s.name) << ", " << s.cameras.size() << " view(s) "
-            << s.width << "x" << s.height << ", " << tris << " triangles, " << s.lights.size() << " light(s)\n";
-  std::cout << "parameters: " << p.params.size() << " values\n";
-  for (const auto& sl : p.params.slots()) {
-    std::cout << "  " << sl.name << ": " << sl.size << " value(s)";
-    if (sl.width) std::cout << " (" << sl.width << "x" << sl.height << " texture)";
-    std::cout << ", bounds [" << sl.lower << ", " << sl.upper << "], learning rate " << sl.learningRate << "\n";
-  }
-  const auto& g = p.gradient;
-  std::cout << "estimators:\n";
-  if (g.maxDepth > 1)
-    std::cout << "  primal and derivative: path tracing up to " << g.maxDepth << " vertices with NEE + MIS and Russian roulette,\n"
-              << "    derivatives by path replay (constant memory), interior term only\n";
-  else
-    std::cout << "  primal and derivative: direct illumination, interior term only (Wang et al. 2023, Eq. 12-13)\n";
-  std::cout << "    independent primal and derivative passes (" << g.sppPrimal << " + " << g.sppGradient << " spp)\n"
-            << "  light sampling: " << gradientMethodName(g.method);
-  if (g.method != GradientMethod::Pt)
-    std::cout << " (" << g.restir.candidates << " candidates, visibility " << (g.restir.visibilityInTarget ? "in" : "not in") << " the target)";
-  if (g.method == GradientMethod::Restir)
-    std::cout << "; reuse: " << g.restir.neighbours << " neighbour(s) within " << g.radiusPixels << " px, M-cap " << g.restir.mCap
-              << ", burn-in " << p.burnIn << (g.forwardOnly ? ", forward only" : "");
-  std::cout << "\n  pixels: " << pixelSamplerName(g.pixels.sampler);
-  const int batchSamples = g.pixels.samplesPerView > 0 ? g.pixels.samplesPerView : int(pixels / 4);  // the engine's default
-  if (g.pixels.sampler != PixelSampler::All)
-    std::cout << " mini-batch of " << batchSamples << " pixel samples per view, each traced, weighted 1/(N p), defensive uniform share "
-              << g.pixels.defensive;
-  if (g.pixels.sampler == PixelSampler::LossGrad || g.pixels.sampler == PixelSampler::Adaptive)
-    std::cout << "; stage-1 maps every " << g.pixels.refreshEvery << " steps (every " << g.pixels.stage1Stride
-              << "nd pixel, 1 sample, edge-aware upsampling" << (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) << ")";
-  std::cout << "\n  boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility\n"
-            << "    discontinuity moves with them\n"
-            << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd")
-            << (p.schedule.halfLifeSteps > 0 ? " (learning rates halve after " + BenchReport::fmt(p.schedule.halfLifeSteps) + " steps)" : std::string())
-            << ", " << p.steps << " steps, " << p.viewsPerStep << " view(s) per step\n";
-  std::cout << "targets: " << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp); parameter error reported"
-                                                   : "uploaded images; no ground truth")
-            << "\n";
-  size_t maxShard = 0;
-  for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
-  // A mini-batch traces each of its N draws (a pixel drawn twice, twice); stage 1 comes on top.
-  const double pixelSamples = g.pixels.sampler == PixelSampler::All ? double(pixels) : double(batchSamples);
-  double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient);
-  std::cout << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << paths / 1e6
-            << " M camera paths per step\n";
-  // Memory of one worker holding the largest shard (the model the service checks its budget with).
-  const WorkerMemory mem = estimateWorkerMemory(p, std::thread::hardware_concurrency());
-  std::printf("memory per worker (largest shard): ~%.1f MiB (geometry %.1f, images %.1f, reservoirs %.1f, gradients %.1f)\n",
-              mem.total() / 1048576.0, mem.geometry / 1048576.0, mem.images / 1048576.0, mem.reservoirs / 1048576.0,
-              mem.gradients / 1048576.0);
+  Problem p = buildProblem(job, assets, SceneUse::Validate);
+  std::cout << planJob(job, p, embeddedWorkerThreads(p.shards.size(), 0)).text();
 }
 
 // ------------------------------------------------------------------------------- embedded
@@ -230,7 +218,7 @@ int runJob(const RunArgs& a) {
     std::cout << "submitted " << r.job_id() << " to " << a.server << "\n";
     int code = watchToEnd(c, r.job_id(), 0, a.json, "the job goes on: invr watch " + r.job_id() + " --server " + a.server);
     if (code == exit_code::kOk || code == exit_code::kJobFailed) {
-      int n = c.fetchAll(r.job_id(), out);
+      int n = fetchResults(c, r.job_id(), out);
       std::cout << "wrote " << n << " file(s) to " << where(out) << "\n";
     }
     return code;
@@ -239,11 +227,11 @@ int runJob(const RunArgs& a) {
   // Embedded: a server in this process and local worker processes.
   AssetResolver localAssets;
   localAssets.baseDir = baseDir;
-  Problem probe = buildProblem(job, localAssets);  // fail fast, with the file's own paths in errors
+  // Fail fast, with the file's own paths in errors; no BVH: this process never traces a ray.
+  Problem probe = buildProblem(job, localAssets, SceneUse::Validate);
   int cores = int(std::max(1u, std::thread::hardware_concurrency()));
   int workers = a.workers > 0 ? a.workers : std::max(2, cores);
-  int busy = std::min<int>(workers, int(probe.shards.size()));
-  int threads = std::max(1, cores / std::max(1, busy));
+  int threads = int(embeddedWorkerThreads(probe.shards.size(), a.workers));
   bool tempStore = a.store.empty();
   std::filesystem::path store = tempStore ? std::filesystem::temp_directory_path() / ("invr-run-" + std::to_string(getpid())) : std::filesystem::path(a.store);
   std::filesystem::create_directories(store);
@@ -278,7 +266,7 @@ int runJob(const RunArgs& a) {
                         tempStore ? "the embedded server stops with this command (use --store DIR to keep and resume jobs)"
                                   : "the job resumes when you run the same command again");
   if (code == exit_code::kOk || code == exit_code::kJobFailed) {
-    int n = c.fetchAll(r.job_id(), out);
+    int n = fetchResults(c, r.job_id(), out);
     v1::JobStatus st = c.get(r.job_id());
     if (!a.json) {
       if (st.state() == v1::SUCCEEDED) {
@@ -402,7 +390,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   fc->add_option("-o,--out", fe->out, "folder")->capture_default_str();
   fc->callback([fe, &exitCode] {
     ServiceClient c(fe->server);
-    int n = c.fetchAll(fe->id, fe->out);
+    int n = fetchResults(c, fe->id, fe->out);
     std::cout << "wrote " << n << " file(s) to " << where(fe->out) << "\n";
     exitCode = exit_code::kOk;
   });
@@ -460,13 +448,19 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     exitCode = exit_code::kOk;
   });
 
-  auto pl = std::make_shared<JobArgs>();
+  struct PlanArgs : JobArgs {
+    std::string server;
+  };
+  auto pl = std::make_shared<PlanArgs>();
   auto* pc = app.add_subcommand("plan", "Print what a job will compute (estimators, parameters, memory) without running it");
   addJobArgs(pc, *pl);
+  pc->add_option("--server", pl->server,
+                 "ask this server (validated as a submission would be; memory for its workers' threads); without it, the plan for "
+                 "`invr run`'s local workers on this machine");
   pc->callback([pl, &exitCode] {
     std::filesystem::path baseDir;
     v1::JobSpec job = loadJob(*pl, baseDir);
-    printPlan(job, baseDir);
+    printPlan(job, baseDir, pl->server);
     exitCode = exit_code::kOk;
   });
 }

@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "server/sha256.h"
+#include "proto/wire/sha256.h"
 
 namespace invr::server {
 

@@ -24,20 +24,20 @@
 #include <thread>
 
 #include "core/diff/memory_model.h"
+#include "core/diff/plan.h"
 #include "core/diff/problem.h"
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/io/job_io.h"
 #include "core/io/limits.h"
-#include "core/optim/figures.h"
 #include "core/optim/optimization_loop.h"
 #include "core/optim/results_io.h"
 #include "invr/v1/service.grpc.pb.h"
 #include "server/asset_store.h"
 #include "server/job_store.h"
-#include "server/sha256.h"
+#include "proto/wire/sha256.h"
 #include "server/task_check.h"
-#include "server/wire.h"
+#include "proto/wire/wire.h"
 
 namespace invr::server {
 
@@ -358,6 +358,22 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     return reactor;
   }
 
+  grpc::ServerUnaryReactor* PlanJob(grpc::CallbackServerContext* ctx, const v1::PlanJobRequest* req, v1::JobPlan* resp) override {
+    auto* reactor = ctx->DefaultReactor();
+    // Building the problem loads meshes and textures: not on a gRPC thread.
+    postControl([this, reactor, req, resp] {
+      v1::JobSpec spec = req->spec();
+      grpc::Status st;
+      try {
+        st = admit(spec, resp);
+      } catch (const std::exception& e) {
+        st = grpc::Status(grpc::StatusCode::INTERNAL, e.what());
+      }
+      reactor->Finish(st);
+    });
+    return reactor;
+  }
+
   grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req, v1::JobStatus* resp) override {
     auto* reactor = ctx->DefaultReactor();
     std::lock_guard<std::mutex> lk(mu);
@@ -625,8 +641,9 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     return r;
   }
 
-  grpc::Status submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
-    v1::JobSpec spec = req.spec();
+  // Everything a job must pass before it is queued (SubmitJob) or planned (PlanJob): the same
+  // checks, errors and codes for both. `plan` (optional) receives the job's plan.
+  grpc::Status admit(v1::JobSpec& spec, v1::JobPlan* plan) {
     // Fields this server does not know would be stored and sent to every worker unread.
     spec.DiscardUnknownFields();
     try {
@@ -654,8 +671,10 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       // Every texture, mesh and target is charged to the job's budget before it is allocated;
       // the problem is dropped again once validated.
       MemoryBudget budget(opt.maxJobBytes);
-      Problem p = buildProblem(spec, resolver(&budget));
-      WorkerMemory mem = estimateWorkerMemory(p, maxWorkerThreads());
+      Problem p = buildProblem(spec, resolver(&budget), SceneUse::Validate);
+      const unsigned threads = maxWorkerThreads();
+      WorkerMemory mem = estimateWorkerMemory(p, threads);
+      if (plan) *plan = planJob(spec, p, threads);
       const double state = mem.images + mem.reservoirs + mem.gradients + mem.textures;  // may exceed 2^64: compare as double
       budget.charge(state < double(budget.limit()) ? uint64_t(state) : budget.limit() + 1,
                     "per-worker state (images, reservoirs, gradients of the largest shard, as `invr plan` estimates it)");
@@ -668,6 +687,12 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     } catch (const std::exception& e) {
       return grpc::Status(grpc::StatusCode::INTERNAL, e.what());
     }
+    return grpc::Status::OK;
+  }
+
+  grpc::Status submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
+    v1::JobSpec spec = req.spec();
+    if (grpc::Status st = admit(spec, nullptr); !st.ok()) return st;
     std::lock_guard<std::mutex> lk(mu);
     if (!req.request_id().empty()) {  // a concurrent retry may have won the race
       auto it = byRequestId.find(req.request_id());
@@ -962,7 +987,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     std::string method;
     try {
       MemoryBudget budget(opt.maxJobBytes);
-      p = buildProblem(spec, resolver(&budget));
+      p = buildProblem(spec, resolver(&budget), SceneUse::Validate);  // the server never traces a ray
       method = gradientMethodName(p.gradient.method);
       auto saved = jobs.loadCheckpoint(id);
       haveCheckpoint = saved.has_value();
@@ -1217,14 +1242,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       (void)csv;
       files.push_back("convergence.csv");
     }
-    // Its chart, when the machine can draw one (a missing matplotlib never fails a job).
-    try {
-      drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png", "seconds",
-                           p.groundTruthKnown() ? "param_error" : "loss");
-      files.push_back("convergence.png");
-    } catch (const std::exception& e) {
-      spdlog::warn("[{}] no convergence chart: {}", run.id, e.what());
-    }
+    // Charts are the client's: `invr fetch` and `invr run` draw convergence.png from this CSV.
     // Final renders (and the targets beside them) from the workers.
     logEvent(run.id, "rendering final images");
     std::vector<std::optional<v1::Task>> tasks(p.shards.size());

@@ -18,8 +18,8 @@
 #include "core/error.h"
 #include "core/render/renderer.h"
 #include "invr/v1/service.grpc.pb.h"
-#include "server/sha256.h"
-#include "server/wire.h"
+#include "proto/wire/sha256.h"
+#include "proto/wire/wire.h"
 
 namespace invr::worker {
 

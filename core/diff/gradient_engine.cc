@@ -55,6 +55,7 @@ bool visibleFromCamera(const Scene& scene, const Camera& cam, Vec3 p, Vec3 n) {
 GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options)
     : scene_(scene), params_(params), targets_(std::move(targets)), opt_(options),
       scratch_(std::make_unique<GradientScratchPool>(params.size())) {
+  if (!scene.accelerated()) throw std::logic_error("GradientEngine: the scene was built for validation only (no BVH)");
   if (opt_.sppPrimal <= 0 || opt_.sppGradient <= 0) throw InputError("spp_primal and spp_gradient must be positive");
   if (opt_.restir.candidates <= 0) throw InputError("ris_candidates must be positive");
   if (!(opt_.radiusPixels > 0.f)) throw InputError("restir radius_pixels must be positive");

@@ -12,11 +12,11 @@ namespace invr {
 
 namespace v1 = invr::v1;
 
-Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets) {
+Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneUse use) {
   const auto& o = job.optimization();
   auto fail = [](const std::string& field, const std::string& why) { throw InputError("optimization." + field + ": " + why); };
   Problem p;
-  p.scene = buildJobScene(job, assets);
+  p.scene = buildJobScene(job, assets, use);
   if (o.parameters_size() == 0) fail("parameters", "list at least one parameter to recover");
   for (int i = 0; i < o.parameters_size(); ++i) {
     const auto& ps = o.parameters(i);

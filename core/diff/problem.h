@@ -44,7 +44,9 @@ Evaluation evaluationAt(const Problem& problem, uint64_t counter);
 // The request shard `shard` evaluates for an evaluation (views empty: the shard sits this one out).
 GradientRequest shardRequest(const Problem& problem, const Evaluation& e, size_t shard);
 
-Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets = {});
+// Built once per process that needs it: SceneUse::Validate where nothing is traced (client
+// checks, plan, server), Render (with the BVH) in workers and in-process runs.
+Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets = {}, SceneUse use = SceneUse::Render);
 
 // The job's light transport for forward renders: targets, final renders and the image-error
 // meter all render through it, so they show what the gradients differentiate (optimization.

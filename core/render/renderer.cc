@@ -21,6 +21,7 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
   if (view < 0 || size_t(view) >= scene.cameras.size())
     throw InputError("view " + std::to_string(view) + " out of range (scene has " + std::to_string(scene.cameras.size()) + " views)");
   if (opt.spp <= 0) throw InputError("spp must be positive (got " + std::to_string(opt.spp) + ")");
+  if (!scene.accelerated()) throw std::logic_error("renderView: the scene was built for validation only (no BVH)");
   auto t0 = std::chrono::steady_clock::now();
   const int W = scene.width, H = scene.height;
   const Camera& cam = scene.cameras[size_t(view)];

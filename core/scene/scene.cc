@@ -6,7 +6,7 @@
 
 namespace invr {
 
-void Scene::finalize() {
+void Scene::finalize(bool accelerate) {
   boundsMin = Vec3(std::numeric_limits<float>::infinity());
   boundsMax = -boundsMin;
   for (const auto& m : meshes)
@@ -27,7 +27,8 @@ void Scene::finalize() {
     l.triangles = Distribution1D(areas);
   }
   updateLightSelection();
-  accel.build(meshes);
+  if (accelerate) accel.build(meshes);
+  accelerated_ = accelerate;
 }
 
 void Scene::updateLightSelection() {

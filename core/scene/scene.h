@@ -47,8 +47,10 @@ class Scene {
   float radius = 1.f;
 
   // Computes bounds, face normals, light areas and the light-selection distribution, and builds
-  // the BVH.
-  void finalize();
+  // the BVH (unless `accelerate` is false: a scene that is only validated or planned, never traced).
+  void finalize(bool accelerate = true);
+  // Whether the BVH was built: rays can be traced.
+  bool accelerated() const { return accelerated_; }
   // Recomputes light power and the light-selection distribution (after emission changed).
   void updateLightSelection();
   // Moves a mesh's vertices (shape optimisation): refits the BVH and updates face normals.
@@ -93,6 +95,7 @@ class Scene {
   std::vector<uint32_t> infiniteLights_;
   std::vector<std::vector<Vec3>> faceNormals_;
   uint64_t geometryVersion_ = 0;
+  bool accelerated_ = false;
 };
 
 }  // namespace invr

@@ -202,7 +202,7 @@ TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const st
 
 }  // namespace
 
-std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& assets) {
+std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& assets, SceneUse use) {
   auto scene = std::make_unique<Scene>();
   scene->name = spec.name();
   const std::string root = "scene";
@@ -332,14 +332,14 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
     cam.name = c.name();
     scene->cameras.push_back(cam);
   }
-  scene->finalize();
+  scene->finalize(use == SceneUse::Render);
   return scene;
 }
 
-std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver& assets) {
+std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver& assets, SceneUse use) {
   switch (job.scene_source_case()) {
-    case v1::JobSpec::kZoo: return buildScene(zooScene(job.zoo()), assets);
-    case v1::JobSpec::kScene: return buildScene(job.scene(), assets);
+    case v1::JobSpec::kZoo: return buildScene(zooScene(job.zoo()), assets, use);
+    case v1::JobSpec::kScene: return buildScene(job.scene(), assets, use);
     default: throw InputError("job: set either 'zoo' (a built-in scene name) or 'scene'");
   }
 }

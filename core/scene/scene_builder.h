@@ -24,10 +24,15 @@ struct AssetResolver {
   std::filesystem::path resolve(const invr::v1::AssetRef& ref, const std::string& field) const;
 };
 
-std::unique_ptr<Scene> buildScene(const invr::v1::Scene& spec, const AssetResolver& assets = {});
+// What a scene is built for. Validate reads and checks everything (assets, limits, the memory
+// budget) but builds no BVH: the client's early check, `invr plan` and the server, which never
+// trace a ray, use it; workers and in-process runs build for Render, once per session.
+enum class SceneUse { Render, Validate };
+
+std::unique_ptr<Scene> buildScene(const invr::v1::Scene& spec, const AssetResolver& assets = {}, SceneUse use = SceneUse::Render);
 
 // The job's scene: its zoo entry or inline scene.
-std::unique_ptr<Scene> buildJobScene(const invr::v1::JobSpec& job, const AssetResolver& assets = {});
+std::unique_ptr<Scene> buildJobScene(const invr::v1::JobSpec& job, const AssetResolver& assets = {}, SceneUse use = SceneUse::Render);
 
 // Defaults applied for zero-valued fields (proto3 has no presence for scalars).
 RenderOptions renderOptionsFrom(const invr::v1::RenderSettings& settings);

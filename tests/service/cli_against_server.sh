@@ -15,6 +15,13 @@ ADDR="127.0.0.1:$(cat "$DIR/port")"
 WORKER=$!
 for _ in $(seq 100); do "$BIN/invr" workers --server "$ADDR" | grep -q "thread" && break; sleep 0.05; done
 
+# The plan from the server's view (memory for its worker's 2 threads), and a job it would refuse
+# refused by plan with the submission's message.
+"$BIN/invr" plan cornell --server "$ADDR" | grep -q "memory per worker (largest shard, 2 threads)"
+echo '{"zoo": "cornell", "optimization": {"parameters": [{"name": "materials/red/albedo", "lower": 0}]}}' >"$DIR/zero.json"
+if "$BIN/invr" plan "$DIR/zero.json" --server "$ADDR" 2>"$DIR/plan.err"; then echo "plan accepted a zero bound"; exit 1; fi
+grep -q "parameters\[0\].lower" "$DIR/plan.err"
+
 ID=$("$BIN/invr" submit cornell --steps 3 --target-spp 4 --server "$ADDR")
 echo "submitted $ID"
 "$BIN/invr" watch "$ID" --server "$ADDR" >"$DIR/watch.txt"

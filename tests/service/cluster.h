@@ -26,7 +26,7 @@
 #include "core/io/job_io.h"
 #include "core/optim/local_run.h"
 #include "invr/v1/service.grpc.pb.h"
-#include "server/wire.h"
+#include "proto/wire/wire.h"
 
 extern char** environ;
 

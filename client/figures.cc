@@ -1,4 +1,4 @@
-#include "core/optim/figures.h"
+#include "client/figures.h"
 
 #include <fcntl.h>
 #include <spawn.h>
@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/optim/figures_script.h"  // kFiguresScript, generated from core/optim/figures.py
+#include "client/figures_script.h"  // kFiguresScript, generated from client/figures.py
 
 extern char** environ;
 

@@ -1,4 +1,4 @@
-#include "server/sha256.h"
+#include "proto/wire/sha256.h"
 
 #include <fstream>
 #include <stdexcept>

@@ -1,0 +1,109 @@
+#include "core/diff/plan.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <sstream>
+
+namespace invr {
+
+namespace {
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+std::string mib(double bytes) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f", bytes / 1048576.0);
+  return b;
+}
+}  // namespace
+
+v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThreads) {
+  v1::JobPlan plan;
+  const Scene& s = *p.scene;
+  const size_t pixels = size_t(s.width) * size_t(s.height);
+  size_t tris = 0;
+  for (const auto& m : s.meshes) tris += m.triangleCount();
+  std::ostringstream out;
+  out << "job " << job.name() << ": scene "
+      << (job.has_zoo() ? job.zoo() : s.name.empty() ? std::string("(inline)") : s.name) << ", " << s.cameras.size() << " view(s) "
+      << s.width << "x" << s.height << ", " << tris << " triangles, " << s.lights.size() << " light(s)\n";
+  out << "parameters: " << p.params.size() << " values\n";
+  plan.set_parameter_values(p.params.size());
+  for (const auto& sl : p.params.slots()) {
+    out << "  " << sl.name << ": " << sl.size << " value(s)";
+    if (sl.width) out << " (" << sl.width << "x" << sl.height << " texture)";
+    out << ", bounds [" << num(sl.lower) << ", " << num(sl.upper) << "], learning rate " << num(sl.learningRate) << "\n";
+  }
+  const auto& g = p.gradient;
+  std::vector<std::string> est;
+  if (g.maxDepth > 1)
+    est.push_back("primal and derivative: path tracing up to " + std::to_string(g.maxDepth) +
+                  " vertices with NEE + MIS and Russian roulette, derivatives by replaying each path's recorded vertices; interior term only");
+  else
+    est.push_back("primal and derivative: direct illumination, interior term only (Wang et al. 2023, Eq. 12-13)");
+  est.push_back("independent primal and derivative passes (" + std::to_string(g.sppPrimal) + " + " + std::to_string(g.sppGradient) +
+                " spp); the reported loss is their unbiased product (I1 - T)(I2 - T)");
+  std::string light = "light sampling: " + std::string(gradientMethodName(g.method));
+  if (g.method != GradientMethod::Pt)
+    light += " (" + std::to_string(g.restir.candidates) + " candidates, visibility " + (g.restir.visibilityInTarget ? "in" : "not in") +
+             " the target)";
+  if (g.method == GradientMethod::Restir)
+    light += "; reuse: " + std::to_string(g.restir.neighbours) + " neighbour(s) within " + num(g.radiusPixels) + " px, M-cap " +
+             num(g.restir.mCap) + ", burn-in " + std::to_string(p.burnIn) + (g.forwardOnly ? ", forward only" : "") +
+             (g.preserveOccluded ? ", reservoirs no step replaced are kept (Alg. 8)" : "");
+  est.push_back(light);
+  const int batchSamples = g.pixels.samplesPerView > 0 ? g.pixels.samplesPerView : int(pixels / 4);  // the engine's default
+  std::string px = "pixels: " + std::string(pixelSamplerName(g.pixels.sampler));
+  if (g.pixels.sampler != PixelSampler::All)
+    px += " mini-batch of " + std::to_string(batchSamples) + " pixel samples per view, each traced, weighted 1/(N p), defensive uniform share " +
+          num(g.pixels.defensive);
+  if (g.pixels.sampler == PixelSampler::LossGrad || g.pixels.sampler == PixelSampler::Adaptive)
+    px += "; stage-1 maps every " + std::to_string(g.pixels.refreshEvery) + " steps (one pixel in " + std::to_string(g.pixels.stage1Stride) +
+          " per axis, 1 sample, edge-aware upsampling" +
+          (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) + ")";
+  est.push_back(px);
+  est.push_back("boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility discontinuity moves with them");
+  est.push_back("light transport of targets, gradients and final renders: " +
+                (g.maxDepth > 1 ? std::to_string(g.maxDepth) + " vertices, NEE + MIS" : std::string("direct illumination")));
+  out << "estimators:\n";
+  for (const auto& e : est) {
+    out << "  " << e << "\n";
+    plan.add_estimators(e);
+  }
+  out << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd")
+      << (p.schedule.halfLifeSteps > 0 ? " (the t-th update at learning_rate * h / (h + t), h = " + num(p.schedule.halfLifeSteps) + ")"
+                                       : std::string(" (constant learning rates)"))
+      << ", " << p.steps << " steps, " << p.viewsPerStep << " view(s) per step\n";
+  out << "targets: "
+      << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp); parameter error reported"
+                               : std::string("uploaded images; no ground truth"))
+      << "\n";
+  size_t maxShard = 0;
+  for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
+  // A mini-batch traces each of its N draws (a pixel drawn twice, twice); stage 1 comes on top.
+  const double pixelSamples = g.pixels.sampler == PixelSampler::All ? double(pixels) : double(batchSamples);
+  const double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient);
+  out << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << num(paths / 1e6)
+      << " M camera paths per step\n";
+  plan.set_shards(uint32_t(p.shards.size()));
+  plan.set_views_per_step(uint32_t(p.viewsPerStep));
+  plan.set_camera_paths_per_step(paths);
+  // Memory of one worker holding the largest shard (the model the service checks its budget with).
+  const WorkerMemory mem = estimateWorkerMemory(p, workerThreads);
+  out << "memory per worker (largest shard, " << workerThreads << " threads): ~" << mib(mem.total()) << " MiB (geometry "
+      << mib(mem.geometry) << ", images " << mib(mem.images) << ", reservoirs " << mib(mem.reservoirs) << ", gradients "
+      << mib(mem.gradients) << ", textures " << mib(mem.textures) << ")\n";
+  plan.set_worker_threads(workerThreads);
+  plan.set_worker_memory_bytes(mem.total());
+  plan.set_geometry_bytes(mem.geometry);
+  plan.set_image_bytes(mem.images);
+  plan.set_reservoir_bytes(mem.reservoirs);
+  plan.set_gradient_bytes(mem.gradients);
+  plan.set_texture_bytes(mem.textures);
+  plan.set_text(out.str());
+  return plan;
+}
+
+}  // namespace invr
