@@ -118,6 +118,9 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
         st.secondsStage1 += secondsSince(t0);
       }
       batches.push_back(drawPixelBatch(map, n, RngKey{streamSeed(req.seed, Stream::PixelBatch), req.step, uint64_t(v), 0, 0}));
+      for (size_t j = 0; j < pixels; ++j)
+        INVR_INVARIANT((batches.back().draws[j] > 0) == (batches.back().weight[j] > 0.f) && std::isfinite(batches.back().weight[j]),
+                       "a pixel batch weight does not match its draws");
     }
   }
   auto batchOf = [&](size_t k) { return batches.empty() ? nullptr : &batches[k]; };
@@ -221,6 +224,8 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       ++kept;
     }
     next.resize(kept);
+    INVR_INVARIANT(slots.item.size() == req.views.size() * slots.slotsPerView, "a pass left reservoir slots unaccounted for");
+    for (uint32_t item : slots.item) INVR_INVARIANT(item == UINT32_MAX || item < kept, "a pixel slot points past the stored reservoirs");
     // Alg. 8: an old reservoir is replaced when a view of this step traced the pixel it projects
     // to and sees it there; every other one is kept. With pixel mini-batches that keeps the
     // reservoirs of undrawn pixels of the batch's own views: whether one is kept depends only on

@@ -105,6 +105,9 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
           if (kept > 0) res.image.setRgb(x, y, Rgb(float(acc[0] / kept), float(acc[1] / kept), float(acc[2] / kept)));
           // The adjoint was split over all samples; the kept ones carry the whole pixel.
           if (derivative) scratch->commit(pixelGrad, kept > 0 ? float(samples) / float(kept) : 0.f);
+          INVR_INVARIANT(pixelGrad.size() == 0, "a pixel's derivatives outlived it");
+          for (int s = 0; slots && s < spp; ++s)
+            INVR_INVARIANT(slots[s].mesh == UINT32_MAX || slots[s].mesh < scene.meshes.size(), "a reservoir slot holds no valid anchor");
         }
       if (derivative) scratch->flush(tiles[size_t(tile)]);
     }

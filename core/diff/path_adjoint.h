@@ -12,7 +12,7 @@
 // path, the random numbers are consumed once. Pdfs, MIS and roulette weights are detached.
 #pragma once
 
-#include <cassert>
+#include "core/error.h"
 #include <new>
 
 #include "core/diff/bsdf_adjoint.h"
@@ -38,7 +38,7 @@ class PathAdjointVisitor {
   }
   void bounce(const WalkVertex& v, Vec3 wi) {
     if (!hasBsdfParameters(params_, v.material)) return;
-    assert(count_ < size_t(kMaxWalkDepth));  // one bounce per depth; max_depth is at most 64
+    INVR_INVARIANT(count_ < size_t(kMaxWalkDepth), "more bounces than max_depth allows");  // one per depth
     if (count_ < size_t(kMaxWalkDepth))
       new (&pending_[count_++ * sizeof(Pending)]) Pending{v.material, v.hit->uv, v.bsdf->evalDerivatives(v.wo, wi), v.bsdf->eval(v.wo, wi), L_};
   }

@@ -1,5 +1,7 @@
 #include "core/math/sampling.h"
 
+#include "core/error.h"
+
 #include <algorithm>
 
 namespace invr {
@@ -57,6 +59,7 @@ size_t Distribution1D::sample(float u, float* remapped) const {
     while (i + 1 < pmf_.size() && cdf_[i + 1] <= du) ++i;
   }
   while (pmf_[i] == 0.f && i > 0) --i;  // guards u landing exactly on a boundary
+  INVR_INVARIANT(i < pmf_.size() && (pmf_[i] > 0.f || total_ == 0.0), "Distribution1D::sample left the distribution or chose a cell of probability 0");
   if (remapped) *remapped = std::clamp(float(double(u) - cdf_[i]) * invPmf_[i], 0.f, 0x1.fffffep-1f);
   return i;
 }

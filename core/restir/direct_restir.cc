@@ -1,5 +1,7 @@
 #include "core/restir/direct_restir.h"
 
+#include "core/error.h"
+
 namespace invr {
 
 namespace {
@@ -48,6 +50,7 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
               ? prev->neighbours(sp.hit->p, sp.hit->ns, std::min(s.neighbours, kMaxNeighbours), s.radius, s.normalDot, nb, hints)
               : 0;
 
+  for (int i = 0; i < k; ++i) INVR_INVARIANT(nb[i] < prev->size(), "a neighbour index past the stored reservoirs");
   Reservoir c;
   c.M = fresh.M;
   int chosenFrom = -1;  // -1: the fresh reservoir; i: neighbour i
