@@ -212,7 +212,26 @@ struct SceneResult {
   std::vector<MethodResult> methods;
   Json truthScalars = Json::object();  // slot: values
   std::vector<Json> methodScalars;
+  std::string setting;  // the job's settings that shape the figures (loss, learning-rate schedule, scene notes)
 };
+
+// What a reader needs next to a scene's figures: the job's loss and learning-rate schedule as
+// implemented, and the scene choices that shape the comparison.
+std::string sceneSetting(const std::string& scene, const Problem& p) {
+  std::string s = "Loss " + std::string(lossName(p.gradient.loss)) + "; learning rates ";
+  if (p.schedule.halfLifeSteps > 0)
+    s += "decay as learning_rate * h / (h + t) at update t, h = " + fmt(p.schedule.halfLifeSteps) + " (half the rate after h steps)";
+  else
+    s += "constant";
+  s += ".";
+  if (scene == "oxalis")
+    s += " The two spotlights are about 30x brighter than the fill light, so selection by power gives the fill 2 % of the "
+         "light samples: the texels only the fill lights are where one light sample per pixel fails.";
+  if (scene == "ajar")
+    s += " The rate is kept constant on purpose: a decaying rate would mostly hide how far PT's gradients walk the texture "
+         "away from the truth, the failure this scene is there to show.";
+  return s;
+}
 
 double finalParamError(const MethodResult& m) { return m.run.history.back().parameterError; }
 // RMS of the parameter error over the last quarter of the budget: a run that oscillates around
@@ -300,6 +319,7 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
   job.mutable_optimization()->set_target_spp(suite.targetSpp);
   Problem p = buildProblem(job);
   r.parameters = p.params.size();
+  r.setting = sceneSetting(es.scene, p);
   std::cerr << "[" << es.scene << "] rendering targets (" << suite.targetSpp << " spp, " << p.scene->cameras.size() << " views)...\n";
   std::vector<Image> targets = renderTargets(p);
   ImageErrorMeter meter(p, suite.imageErrorViews, suite.imageErrorSpp);
@@ -356,7 +376,7 @@ const MethodResult* uniformPeer(const SceneResult& r, const MethodResult& m) {
 
 Json sceneJson(const SceneResult& r) {
   const MethodResult& base = r.methods.front();
-  Json o = {{"budget_seconds_per_method", r.seconds},
+  Json o = {{"budget_seconds_per_method", r.seconds}, {"setting", r.setting},
             {"parameters", r.parameters},
             {"baseline", base.name},
             {"initial_param_error", r.initialParamError},
@@ -426,7 +446,7 @@ std::string sceneMarkdown(const SceneResult& r) {
   std::ostringstream md;
   md << "### " << r.scene << "\n\n"
      << r.parameters << " parameter values; " << fmt(r.seconds) << " s per method; initial parameter error "
-     << fmt(r.initialParamError) << ", image error " << fmt(r.initialImageError) << ".\n\n"
+     << fmt(r.initialParamError) << ", image error " << fmt(r.initialImageError) << ". " << r.setting << "\n\n"
      << "| method | steps | parameter error (final) | parameter error (last 25 %) | image error | " << base.name
      << " / method (param, last 25 %) | " << base.name << " / method (image) |\n|---|---:|---:|---:|---:|---:|---:|\n";
   for (const auto& m : r.methods) {
