@@ -34,6 +34,9 @@ def number(text):
 def chart(out, x, y, title, inputs):
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
     runs = []  # (method, folder, points) in first-seen order
+    # The loss is an unbiased estimate and can dip below 0 near the optimum: keep those points and
+    # draw a symmetric log axis. Errors are positive by construction; non-positive ones are skipped.
+    signed = y == "loss"
     for path in inputs:
         with open(path, newline="") as f:
             rows = list(csv.DictReader(f))
@@ -44,7 +47,7 @@ def chart(out, x, y, title, inputs):
         by_method = {}
         for r in rows:
             xv, yv = number(r.get(x)), number(r.get(y))
-            if xv is None or yv is None or yv <= 0:
+            if xv is None or yv is None or (yv <= 0 and not signed):
                 continue
             by_method.setdefault(r.get("method", "") or folder, []).append((xv, yv))
         if not by_method:
@@ -66,18 +69,24 @@ def chart(out, x, y, title, inputs):
             w = max(5, len(ys) // 50)
             acc, rms = 0.0, []
             for i, v in enumerate(ys):
-                acc += v * v
+                # A signed series (the loss) is smoothed by its mean, an error by its RMS.
+                acc += v if signed else v * v
                 if i >= w:
-                    acc -= ys[i - w] * ys[i - w]
-                rms.append((max(acc, 0.0) / min(i + 1, w)) ** 0.5)
+                    acc -= ys[i - w] if signed else ys[i - w] * ys[i - w]
+                rms.append(acc / min(i + 1, w) if signed else (max(acc, 0.0) / min(i + 1, w)) ** 0.5)
             ax.plot(xs, rms, label=label, linewidth=1.6, color=line.get_color())
             smoothed = True
         else:
             marker = "o" if len(pts) <= 12 else None  # sparse series (image error) show their points
             ax.plot(xs, ys, label=label, linewidth=1.4, marker=marker, markersize=3)
-    ax.set_yscale("log")
+    values = [v for _, _, pts in runs for _, v in pts]
+    if signed and min(values) <= 0:
+        tiny = [abs(v) for v in values if v != 0]
+        ax.set_yscale("symlog", linthresh=min(tiny) if tiny else 1e-12)
+    else:
+        ax.set_yscale("log")
     ax.set_xlabel(LABELS.get(x, x))
-    ax.set_ylabel(LABELS.get(y, y) + ("\n(bold: RMS over the last 2 % of steps; faint: every step)" if smoothed else ""))
+    ax.set_ylabel(LABELS.get(y, y) + ("\n(bold: " + ("mean" if signed else "RMS") + " over the last 2 % of steps; faint: every step)" if smoothed else ""))
     if title:
         ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
