@@ -192,6 +192,11 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
   std::map<uint64_t, Lease> leases;
   uint64_t nextWorker = 1, nextTask = 1;
   const std::vector<uint64_t>* runAssignment = nullptr;  // the running job's shard -> worker
+  // The problem one queued job was validated with, kept for its run so it is built once (the
+  // server builds no BVH). One slot: queued jobs beyond it are built again when they start, so
+  // a long queue holds no problems in memory.
+  std::unique_ptr<Problem> prepared;
+  std::string preparedId;
   bool stopping = false;
 
   // Control work (job validation) runs here, off the gRPC threads.
@@ -407,6 +412,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     if (j.rec.state() == v1::QUEUED) {
       // Not started: nothing runs, so it ends here (the store write is one small file).
       queue.erase(std::remove(queue.begin(), queue.end(), j.rec.job_id()), queue.end());
+      if (preparedId == j.rec.job_id()) prepared.reset();
       j.rec.set_reason("cancelled before it started");
       endJobLocked(j, v1::CANCELLED);
     } else if (j.rec.state() == v1::RUNNING && !j.cancelRequested) {
@@ -643,7 +649,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
 
   // Everything a job must pass before it is queued (SubmitJob) or planned (PlanJob): the same
   // checks, errors and codes for both. `plan` (optional) receives the job's plan.
-  grpc::Status admit(v1::JobSpec& spec, v1::JobPlan* plan) {
+  grpc::Status admit(v1::JobSpec& spec, v1::JobPlan* plan, std::unique_ptr<Problem>* keep = nullptr) {
     // Fields this server does not know would be stored and sent to every worker unread.
     spec.DiscardUnknownFields();
     try {
@@ -675,6 +681,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
       const unsigned threads = maxWorkerThreads();
       WorkerMemory mem = estimateWorkerMemory(p, threads);
       if (plan) *plan = planJob(spec, p, threads);
+      if (keep) *keep = std::make_unique<Problem>(std::move(p));
       const double state = mem.images + mem.reservoirs + mem.gradients + mem.textures;  // may exceed 2^64: compare as double
       budget.charge(state < double(budget.limit()) ? uint64_t(state) : budget.limit() + 1,
                     "per-worker state (images, reservoirs, gradients of the largest shard, as `invr plan` estimates it)");
@@ -692,7 +699,8 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
 
   grpc::Status submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
     v1::JobSpec spec = req.spec();
-    if (grpc::Status st = admit(spec, nullptr); !st.ok()) return st;
+    std::unique_ptr<Problem> validated;
+    if (grpc::Status st = admit(spec, nullptr, &validated); !st.ok()) return st;
     std::lock_guard<std::mutex> lk(mu);
     if (!req.request_id().empty()) {  // a concurrent retry may have won the race
       auto it = byRequestId.find(req.request_id());
@@ -719,6 +727,10 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     if (!req.request_id().empty()) byRequestId[req.request_id()] = id;
     auto& entry = jobTable[id] = std::move(j);
     queue.push_back(id);
+    if (!prepared) {
+      prepared = std::move(validated);
+      preparedId = id;
+    }
     logEventLocked(entry, "queued (" + std::to_string(queue.size()) + " in queue)");
     spdlog::info("[{}] submitted: {}", id, spec.name());
     resp.set_job_id(id);
@@ -986,8 +998,17 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     std::vector<std::string> csv;
     std::string method;
     try {
-      MemoryBudget budget(opt.maxJobBytes);
-      p = buildProblem(spec, resolver(&budget), SceneUse::Validate);  // the server never traces a ray
+      std::unique_ptr<Problem> validated;
+      {
+        std::lock_guard<std::mutex> lk(mu);
+        if (prepared && preparedId == id) validated = std::move(prepared);
+      }
+      if (validated) {
+        p = std::move(*validated);  // built when it was submitted
+      } else {
+        MemoryBudget budget(opt.maxJobBytes);
+        p = buildProblem(spec, resolver(&budget), SceneUse::Validate);  // the server never traces a ray
+      }
       method = gradientMethodName(p.gradient.method);
       auto saved = jobs.loadCheckpoint(id);
       haveCheckpoint = saved.has_value();
