@@ -226,7 +226,7 @@ std::string sceneSetting(const std::string& scene, const Problem& p) {
   s += ".";
   if (scene == "oxalis")
     s += " The two spotlights are about 30x brighter than the fill light, so selection by power gives the fill 2 % of the "
-         "light samples: the texels only the fill lights are where one light sample per pixel fails.";
+         "light samples: the texels lit only by the fill light are where one light sample per pixel fails.";
   if (scene == "ajar")
     s += " The rate is kept constant on purpose: a decaying rate would mostly hide how far PT's gradients walk the texture "
          "away from the truth, the failure this scene is there to show.";
