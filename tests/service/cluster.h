@@ -12,6 +12,8 @@
 
 #include <chrono>
 #include <cstring>
+#include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <condition_variable>
@@ -37,6 +39,14 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 inline const fs::path kBin = INVR_BIN_DIR;
+
+// Time limits a healthy worker must stay under (leases), scaled by INVR_TEST_TIME_SCALE:
+// `deploy/test.sh --sanitize` sets 3, where ASan slows every task and heavier tests run beside.
+inline int scaledSeconds(int seconds) {
+  const char* v = std::getenv("INVR_TEST_TIME_SCALE");
+  int scale = v ? std::atoi(v) : 1;
+  return seconds * std::max(1, scale);
+}
 
 inline pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
   std::vector<std::string> a = args;

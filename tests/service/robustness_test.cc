@@ -252,7 +252,8 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
   Cluster c(tmp.path);
   // The heartbeat timeout is long, so only the lease can notice the stall. The lease covers a
   // healthy worker's longest task (building a moved shard's session) even under sanitizers.
-  c.startServer(0, {"--lease-seconds", "12", "--heartbeat-timeout", "120"});
+  const std::string lease = std::to_string(scaledSeconds(12));
+  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120"});
   pid_t stalled = c.startWorker(1);
   c.startWorker(1);
   v1::JobSpec job = smallJob("backlit", 6);
@@ -266,7 +267,7 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
   evs.insert(evs.end(), rest.begin(), rest.end());
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-  EXPECT_TRUE(anyMessage(evs, "expired after 12 s"));
+  EXPECT_TRUE(anyMessage(evs, "expired after " + lease + " s"));
   // Every step once (the moved shard rebuilds its reservoirs with a burn-in of its own, so the
   // numbers are not the uninterrupted run's).
   EXPECT_EQ(stepsOf(evs), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
@@ -277,7 +278,8 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
 TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
   TempDir tmp;
   Cluster c(tmp.path);
-  c.startServer(0, {"--lease-seconds", "12", "--heartbeat-timeout", "120"});
+  const std::string lease = std::to_string(scaledSeconds(12));
+  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120"});
   std::atomic<int> received{0};
   // Connected first, so it gets a shard; it never answers, and its heartbeats say it is busy.
   ScriptedWorker hung(
@@ -296,7 +298,7 @@ TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
   auto evs = c.watch(id);
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-  EXPECT_TRUE(anyMessage(evs, "lease on worker hung expired after 12 s"));
+  EXPECT_TRUE(anyMessage(evs, "lease on worker hung expired after " + lease + " s"));
   // A second job starts with fresh assignments: the hung worker looks idle to a least-loaded
   // pick, but its heartbeats never showed it free, so it gets no lease here either.
   std::string second;
