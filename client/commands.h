@@ -14,5 +14,6 @@ void addServiceCommands(CLI::App& app, int& exitCode);  // run, submit, watch, s
 void addBenchServiceCommand(CLI::App& bench, int& exitCode);
 void addBenchPixelCommand(CLI::App& bench, int& exitCode);
 void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
+void addImportCommand(CLI::App& app, int& exitCode);  // import: a Mitsuba 3 scene as job JSON
 
 }  // namespace invr::cli

@@ -1,28 +1,41 @@
-// The scene argument of `render` and `optimize`: a zoo scene name, or a job file (.json) whose
-// relative asset paths resolve against the file's folder.
+// The scene/job argument of render, optimize, run, submit and plan: a zoo scene name, a job file
+// (.json, whose relative asset paths resolve against its folder, and whose scene may be a Mitsuba
+// file: {"mitsuba": {"path": ...}}) or a Mitsuba 3 scene file (.xml), imported on the spot.
 #pragma once
 
-#include <filesystem>
-#include <string>
+#include <CLI/CLI.hpp>
 
-#include "core/diff/zoo_jobs.h"
-#include "core/error.h"
-#include "core/io/job_io.h"
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
 #include "core/scene/scene_builder.h"
+#include "invr/v1/job.pb.h"
 
 namespace invr::cli {
 
-inline bool isJobFile(const std::string& arg) { return arg.size() > 5 && arg.substr(arg.size() - 5) == ".json"; }
+bool isJobFile(const std::string& arg);  // .json
 
-// Loads a job file (setting assets.baseDir), or returns the zoo scene's built-in job.
-inline invr::v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets) {
-  if (isJobFile(arg)) {
-    std::filesystem::path p(arg);
-    if (!std::filesystem::exists(p)) throw InputError("job file '" + arg + "': not found");
-    assets.baseDir = p.has_parent_path() ? p.parent_path() : std::filesystem::path(".");
-    return loadJobFile(p);
-  }
-  return zooJob(arg);  // InputError listing the known names
-}
+// Options every command that reads a scene argument shares.
+struct SceneArgs {
+  std::vector<std::string> defines;  // -D name=value: Mitsuba <default> overrides
+  std::vector<std::string> params;   // --param NAME[=V[,V,V]]: the parameters to recover
+};
+void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams);
+
+// Loads the job an argument names (setting assets.baseDir). A Mitsuba scene, directly or through
+// a job file, becomes an inline scene; its import warnings go to stderr.
+invr::v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs = {});
+
+// The job an optimisation command runs: jobFromArgument, then --param replaces the parameter list.
+// A scene without an optimisation block (a Mitsuba file, a job file without one) needs --param;
+// the error says so. For a Mitsuba scene the optimisation takes the scene's depth, with method pt
+// where paths are longer than direct illumination.
+invr::v1::JobSpec optimizationJobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs);
+
+// Imports job.mitsuba into job.scene (asset paths relative to baseDir); render settings the job
+// leaves unset come from the scene file. Warnings are appended to `warnings`.
+void importMitsubaIntoJob(invr::v1::JobSpec& job, const std::filesystem::path& baseDir, std::vector<std::string>& warnings);
 
 }  // namespace invr::cli

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   invr::cli::addOptimizeCommands(app, exitCode);
   invr::cli::addServiceCommands(app, exitCode);
   invr::cli::addEvalCommand(app, exitCode);
+  invr::cli::addImportCommand(app, exitCode);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

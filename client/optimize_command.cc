@@ -25,13 +25,12 @@ struct OptimizeArgs {
   std::string out = "out/optimize";
   int steps = 0;
   std::string method;
+  SceneArgs sceneArgs;
 };
 
 void runOptimize(const OptimizeArgs& a) {
   AssetResolver assets;
-  auto job = jobFromArgument(a.job, assets);
-  if (isJobFile(a.job) && !job.has_optimization())
-    throw InputError("job file '" + a.job + "': has no 'optimization' (see `invr example cornell`)");
+  auto job = optimizationJobFromArgument(a.job, assets, a.sceneArgs);
   if (a.steps < 0) throw InputError("--steps: must be positive (got " + std::to_string(a.steps) + ")");
   if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
   if (a.method == "pt") job.mutable_optimization()->set_method(invr::v1::METHOD_PT);
@@ -79,11 +78,12 @@ void runOptimize(const OptimizeArgs& a) {
 
 void addOptimizeCommands(CLI::App& app, int& exitCode) {
   auto args = std::make_shared<OptimizeArgs>();
-  auto* cmd = app.add_subcommand("optimize", "Run an inverse problem in this process (a zoo scene's built-in job or a job file)");
-  cmd->add_option("job", args->job, "zoo scene name or job file (.json with an 'optimization')")->required();
+  auto* cmd = app.add_subcommand("optimize", "Run an inverse problem in this process (a zoo scene's built-in job, a job file or a Mitsuba 3 scene with --param)");
+  cmd->add_option("job", args->job, "zoo scene name, job file (.json with an 'optimization') or Mitsuba 3 scene (.xml, with --param)")->required();
   cmd->add_option("-o,--out", args->out, "output folder")->capture_default_str();
   cmd->add_option("--steps", args->steps, "override the number of steps");
   cmd->add_option("--method", args->method, "override the method")->check(CLI::IsMember({"pt", "ris", "restir"}));
+  addSceneArgs(cmd, args->sceneArgs, true);
   cmd->callback([args, &exitCode] { runOptimize(*args); exitCode = 0; });
 
   auto name = std::make_shared<std::string>();

@@ -28,13 +28,14 @@ struct RenderArgs {
   int threads = 0;
   long long seed = -1;
   bool aovs = false;
+  SceneArgs sceneArgs;
 };
 
 void runRender(const RenderArgs& a) {
   std::unique_ptr<tbb::global_control> threads;
   if (a.threads > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
   AssetResolver assets;
-  invr::v1::JobSpec job = jobFromArgument(a.scene, assets);
+  invr::v1::JobSpec job = jobFromArgument(a.scene, assets, a.sceneArgs);
   auto* r = job.mutable_render();
   if (a.spp != 0) r->set_spp(a.spp);
   if (a.maxDepth != 0) r->set_max_depth(a.maxDepth);
@@ -74,8 +75,8 @@ void runRender(const RenderArgs& a) {
 
 void addRenderCommand(CLI::App& app, int& exitCode) {
   auto args = std::make_shared<RenderArgs>();
-  auto* cmd = app.add_subcommand("render", "Render one view of a zoo scene or job file to an image");
-  cmd->add_option("--scene", args->scene, "zoo scene name (see `invr zoo`) or job file (.json)")->required();
+  auto* cmd = app.add_subcommand("render", "Render one view of a zoo scene, job file or Mitsuba 3 scene to an image");
+  cmd->add_option("--scene", args->scene, "zoo scene name (see `invr zoo`), job file (.json) or Mitsuba 3 scene (.xml)")->required();
   cmd->add_option("-o,--output", args->output, "output image (.exr, .png or .hdr)")->required();
   cmd->add_option("--view", args->view, "camera view index")->capture_default_str();
   cmd->add_option("--spp", args->spp, "samples per pixel (default: the job's, else 16)");
@@ -86,6 +87,7 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
   cmd->add_option("--seed", args->seed, "random seed");
   cmd->add_option("--threads", args->threads, "worker threads (default: all cores)");
   cmd->add_flag("--aovs", args->aovs, "also write albedo, normal and depth layers (multi-layer .exr only)");
+  addSceneArgs(cmd, args->sceneArgs, false);
   cmd->callback([args, &exitCode] {
     runRender(*args);
     exitCode = 0;

@@ -91,22 +91,22 @@ struct JobArgs {
   int steps = 0;
   std::string method;
   int targetSpp = 0;
+  SceneArgs sceneArgs;
 };
 
 void addJobArgs(CLI::App* cmd, JobArgs& a) {
-  cmd->add_option("job", a.job, "zoo scene name (its built-in job) or job file (.json)")->required();
+  cmd->add_option("job", a.job, "zoo scene name (its built-in job), job file (.json) or Mitsuba 3 scene (.xml, with --param)")->required();
   cmd->add_option("--steps", a.steps, "override the number of steps")->check(CLI::PositiveNumber);
   cmd->add_option("--method", a.method, "override the gradient method")->check(CLI::IsMember({"pt", "ris", "restir"}));
   cmd->add_option("--target-spp", a.targetSpp, "override the samples per pixel of rendered targets")->check(CLI::PositiveNumber);
+  addSceneArgs(cmd, a.sceneArgs, true);
 }
 
 // The job from its argument with overrides applied; baseDir for its relative asset paths.
 v1::JobSpec loadJob(const JobArgs& a, std::filesystem::path& baseDir) {
   AssetResolver assets;
-  v1::JobSpec job = jobFromArgument(a.job, assets);
+  v1::JobSpec job = optimizationJobFromArgument(a.job, assets, a.sceneArgs);
   baseDir = assets.baseDir;
-  if (isJobFile(a.job) && !job.has_optimization())
-    throw InputError("job file '" + a.job + "': has no 'optimization' (see `invr example cornell`)");
   if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
   if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
   if (a.method == "pt") job.mutable_optimization()->set_method(v1::METHOD_PT);

@@ -662,6 +662,7 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
     std::optional<grpc::Status> bad;
     forEachAssetRef(spec, [&](v1::AssetRef& ref, const std::string& field) {
       if (bad) return;
+      if (ref.source_case() == v1::AssetRef::SOURCE_NOT_SET) return;  // optional (a view without a mask); required ones fail below
       if (ref.has_path())
         bad = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                            field + ".path: a job on a server references assets by sha256 (upload '" + ref.path() + "' first)");

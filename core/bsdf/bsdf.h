@@ -21,7 +21,8 @@ enum class BsdfKind { Diffuse, RoughConductor, RoughPlastic, Mirror, Dielectric 
 inline constexpr float kMinAlpha = 1e-3f;
 
 // A BSDF with its textures already looked up. Directions are in the local shading frame.
-// Opaque lobes are two-sided: when wo is below the surface both directions are mirrored.
+// Opaque lobes are two-sided unless oneSided: when wo is below the surface both directions are
+// mirrored.
 struct Bsdf {
   BsdfKind kind = BsdfKind::Diffuse;
   Rgb albedo{0.5f};
@@ -29,12 +30,15 @@ struct Bsdf {
   Rgb eta{1.f}, k{0.f};
   float ior = 1.5f;
   Rgb reflectance{1.f};
+  bool oneSided = false;  // opaque lobes are black from the back (Material::oneSided)
 
   bool isDelta() const { return kind == BsdfKind::Mirror || kind == BsdfKind::Dielectric; }
+  // Seen from the back of a one-sided material: no reflection at all.
+  bool blackFrom(Vec3 wo) const { return oneSided && kind != BsdfKind::Dielectric && wo.z < 0.f; }
 
   // BSDF value times |cos theta_i|.
   Rgb eval(Vec3 wo, Vec3 wi) const {
-    if (isDelta()) return Rgb(0.f);
+    if (isDelta() || blackFrom(wo)) return Rgb(0.f);
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
       case BsdfKind::Diffuse: return diffuse::eval(albedo, wo, wi);
@@ -45,7 +49,7 @@ struct Bsdf {
   }
   // Adjoint of eval (delta lobes have no differentiable parameters here).
   BsdfDerivatives evalDerivatives(Vec3 wo, Vec3 wi) const {
-    if (isDelta()) return {};
+    if (isDelta() || blackFrom(wo)) return {};
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
       case BsdfKind::Diffuse: return diffuse::evalDerivatives(wo, wi);
@@ -55,7 +59,7 @@ struct Bsdf {
     }
   }
   float pdf(Vec3 wo, Vec3 wi) const {
-    if (isDelta()) return 0.f;
+    if (isDelta() || blackFrom(wo)) return 0.f;
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
       case BsdfKind::Diffuse: return diffuse::pdf(wo, wi);
@@ -66,6 +70,7 @@ struct Bsdf {
   }
   std::optional<BsdfSample> sample(Vec3 wo, float uc, Vec2 u) const {
     if (kind == BsdfKind::Dielectric) return dielectric::sample(ior, wo, uc);
+    if (blackFrom(wo)) return std::nullopt;
     bool flip = wo.z < 0.f;
     if (flip) wo.z = -wo.z;
     std::optional<BsdfSample> s;
@@ -89,6 +94,7 @@ struct Material {
   Rgb eta{1.f}, k{0.f};
   float ior = 1.5f;
   Rgb reflectance{1.f};
+  bool oneSided = false;  // black from the back, like Mitsuba's bsdfs outside `twosided`
 
   bool hasAlbedo() const { return kind == BsdfKind::Diffuse || kind == BsdfKind::RoughPlastic; }
   bool hasRoughness() const { return kind == BsdfKind::RoughConductor || kind == BsdfKind::RoughPlastic; }
@@ -100,6 +106,7 @@ struct Material {
     if (kind == BsdfKind::RoughConductor || kind == BsdfKind::RoughPlastic)
       b.alpha = std::max(roughness.evalScalar(uv), kMinAlpha);
     b.eta = eta; b.k = k; b.ior = ior; b.reflectance = reflectance;
+    b.oneSided = oneSided;
     return b;
   }
 };

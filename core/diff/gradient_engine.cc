@@ -62,6 +62,8 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
   if (opt_.maxDepth < 1 || opt_.maxDepth > kMaxWalkDepth) throw InputError("max_depth must be in 1.." + std::to_string(kMaxWalkDepth));
   if (opt_.maxDepth > 1 && opt_.method != GradientMethod::Pt)
     throw InputError("max_depth > 1 (multi-bounce paths) needs method pt: NEE + MIS at every vertex");
+  for (const auto& m : opt_.lossMasks)
+    if (!m.empty() && m.size() != size_t(scene.width) * size_t(scene.height)) throw InputError("a target mask does not match the film's size");
 }
 
 GradientEngine::~GradientEngine() = default;
@@ -124,7 +126,19 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
     }
   }
   auto batchOf = [&](size_t k) { return batches.empty() ? nullptr : &batches[k]; };
-  auto weightsOf = [&](size_t k) { return batches.empty() ? nullptr : &batches[k].weight; };
+  // Loss weights per view of the batch: the pixel mini-batch's, times the target's mask.
+  std::vector<std::vector<float>> maskedWeights(req.views.size());
+  for (size_t k = 0; k < req.views.size(); ++k) {
+    const std::vector<float>* mask = maskOf(req.views[k]);
+    if (!mask) continue;
+    maskedWeights[k] = *mask;
+    if (!batches.empty())
+      for (size_t j = 0; j < pixels; ++j) maskedWeights[k][j] *= batches[k].weight[j];
+  }
+  auto weightsOf = [&](size_t k) -> const std::vector<float>* {
+    if (!maskedWeights[k].empty()) return &maskedWeights[k];
+    return batches.empty() ? nullptr : &batches[k].weight;
+  };
   auto addCounters = [&](const PassOutput& pr, RestirCounters* counters) {
     st.rays += pr.rays;
     st.drops += pr.drops;
@@ -329,6 +343,8 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req, SampleDro
   spec.cancel = req.cancel;
   PassOutput primal = runPass(scene_, *estimator, spec, *scratch_);
   Image adjoint;
+  if (const std::vector<float>* mask = maskOf(view))
+    for (size_t j = 0; j < pixels; ++j) cellPixels.weight[j] *= (*mask)[j];
   imageLoss(opt_.loss, primal.image, targets_[size_t(view)], &adjoint, 1, &cellPixels.weight);
   // Squared parameter derivatives of one sample per cell (Eq. 16), with a unit adjoint.
   spec.kind = PassKind::Stage1;

@@ -88,6 +88,10 @@ class GradientEngine {
 
  private:
   Stage1 runStage1(int view, const GradientRequest& req, SampleDrops& drops);
+  // The loss mask of a view (opt_.lossMasks), or null when it has none.
+  const std::vector<float>* maskOf(int view) const {
+    return size_t(view) < opt_.lossMasks.size() && !opt_.lossMasks[size_t(view)].empty() ? &opt_.lossMasks[size_t(view)] : nullptr;
+  }
 
   const Scene& scene_;
   const ParameterRegistry& params_;

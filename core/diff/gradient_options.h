@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "core/diff/loss.h"
 #include "core/diff/pixel_sampler.h"
@@ -33,6 +34,9 @@ struct GradientOptions {
   int maxDepth = 1;
   int russianRouletteDepth = 3;
   PixelSamplingOptions pixels;  // which pixels a step traces (all, or a mini-batch)
+  // Per view (indexed by view; missing or empty: unmasked), per pixel loss weights from the job's
+  // target masks, normalised to mean 1 over the film so the loss is the masked pixels' mean.
+  std::vector<std::vector<float>> lossMasks;
 };
 
 }  // namespace invr

@@ -29,17 +29,72 @@ int lightIndex(const Scene& scene, const std::string& name) {
   return -1;
 }
 
+std::vector<std::string> splitDots(const std::string& s) {
+  std::vector<std::string> parts;
+  std::stringstream ss(s);
+  std::string part;
+  while (std::getline(ss, part, '.')) parts.push_back(part);
+  return parts;
+}
+
 }  // namespace
 
-const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::string& name, const ParameterOptions& o) {
-  auto fail = [&](const std::string& why) -> const ParameterSlot& {
-    throw InputError("parameter '" + name + "': " + why);
+std::string invrParameterName(const Scene& scene, const std::string& name) {
+  if (name.find('/') != std::string::npos || name.find('.') == std::string::npos) return name;
+  // A Mitsuba 3 key (mi.traverse): <object path>.<property>[.value|.data].
+  auto fail = [&](const std::string& why) -> std::string { throw InputError("parameter '" + name + "' (a Mitsuba name): " + why); };
+  auto parts = splitDots(name);
+  for (const auto& p : parts)
+    if (p.empty()) return fail("empty component");
+  if (parts.back() == "value" || parts.back() == "data") parts.pop_back();
+  if (parts.size() < 2) return fail("expected <id>.<property>.value (or .data for a bitmap), e.g. red.reflectance.value");
+  const std::string prop = parts.back();
+  std::vector<std::string> owner(parts.begin(), parts.end() - 1);
+  auto shapeIndex = [&](const std::string& id) {
+    for (size_t m = 0; m < scene.meshNames.size(); ++m)
+      if (scene.meshNames[m] == id) return int(m);
+    return -1;
   };
-  if (find(name)) return fail("listed twice");
+  if (prop == "reflectance" || prop == "diffuse_reflectance" || prop == "alpha") {
+    // <bsdf id>, <shape id>.bsdf (a bsdf nested in a shape), each optionally through a twosided
+    // wrapper's child (.brdf_0).
+    std::string material;
+    size_t k = 1;
+    if (owner.size() >= 2 && owner[1] == "bsdf" && shapeIndex(owner[0]) >= 0) {
+      material = scene.materials[size_t(scene.meshMaterial[size_t(shapeIndex(owner[0]))])].name;
+      k = 2;
+    } else {
+      if (materialIndex(scene, owner[0]) < 0) return fail("no material (bsdf) with id '" + owner[0] + "'");
+      material = owner[0];
+    }
+    if (k < owner.size() && owner[k] == "brdf_0") ++k;
+    if (k != owner.size()) return fail("no bsdf property at '" + name + "'");
+    return "materials/" + material + (prop == "alpha" ? "/roughness" : "/albedo");
+  }
+  if (prop == "radiance" || prop == "intensity") {
+    if (owner.size() == 1 && lightIndex(scene, owner[0]) >= 0) return "lights/" + owner[0] + "/intensity";
+    // <shape id>.emitter: the area light on that shape.
+    if (owner.size() == 2 && owner[1] == "emitter") {
+      int m = shapeIndex(owner[0]);
+      if (m < 0) return fail("no shape with id '" + owner[0] + "'");
+      if (scene.meshLight[size_t(m)] < 0) return fail("shape '" + owner[0] + "' does not emit");
+      return "lights/" + scene.lights[size_t(scene.meshLight[size_t(m)])].name + "/intensity";
+    }
+    return fail("no emitter with id '" + owner[0] + "'");
+  }
+  return fail("property '" + prop + "' has no invr parameter (reflectance, diffuse_reflectance and alpha of a bsdf; radiance or intensity of an emitter)");
+}
+
+const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::string& givenName, const ParameterOptions& o) {
+  auto fail = [&](const std::string& why) -> const ParameterSlot& {
+    throw InputError("parameter '" + givenName + "': " + why);
+  };
+  if (find(givenName)) return fail("listed twice");
+  const std::string name = invrParameterName(scene, givenName);
   auto parts = split(name);
   if (parts.size() != 3) return fail("expected materials/<name>/albedo|roughness or lights/<name>/intensity");
   ParameterSlot slot;
-  slot.name = name;
+  slot.name = givenName;
   if (parts[0] == "materials") {
     int m = materialIndex(scene, parts[1]);
     if (m < 0) return fail("no material named '" + parts[1] + "'");
@@ -88,9 +143,12 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   if (o.learningRate) slot.learningRate = *o.learningRate;
   if (!(slot.lower <= slot.upper)) return fail("bounds are inverted (lower " + std::to_string(slot.lower) + " > upper " + std::to_string(slot.upper) + ")");
   if (!(slot.learningRate > 0.f) || !std::isfinite(slot.learningRate)) return fail("learning rate must be a positive finite number");
-  size_ += slot.size;
   auto& table = slot.kind == ParamKind::Albedo ? albedo_ : slot.kind == ParamKind::Roughness ? roughness_ : intensity_;
   int owner = slot.material >= 0 ? slot.material : slot.light;
+  if (size_t(owner) < table.size() && table[size_t(owner)] >= 0)
+    for (const auto& other : slots_)
+      if (int(other.offset) == table[size_t(owner)]) return fail("the same value as parameter '" + other.name + "', listed twice");
+  size_ += slot.size;
   if (table.size() <= size_t(owner)) table.resize(size_t(owner) + 1, -1);
   table[size_t(owner)] = int(slot.offset);
   slots_.push_back(slot);

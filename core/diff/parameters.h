@@ -2,6 +2,7 @@
 //   materials/<name>/albedo     diffuse or rough_plastic albedo: 3 values, or width*height*3 texels
 //   materials/<name>/roughness  GGX alpha of rough_conductor/rough_plastic: 1 value, or width*height
 //   lights/<name>/intensity     area/constant-environment radiance or point/spot intensity: 3 values
+// Mitsuba 3 names of the same values are accepted too (invrParameterName).
 // Values are the effective ones (texture scale applied). Only registered parameters get derivative
 // storage.
 #pragma once
@@ -64,6 +65,14 @@ class ParameterRegistry {
   std::vector<int> albedo_, roughness_, intensity_;
   size_t size_ = 0;
 };
+
+// The invr name of a parameter: invr names (materials/..., lights/...) as given; a Mitsuba 3 name
+// (mi.traverse's key) translated: <bsdf id>.reflectance.value or .diffuse_reflectance.value (a
+// bitmap: .data) -> materials/<id>/albedo, <bsdf id>.alpha.value -> materials/<id>/roughness,
+// twosided wrappers' <id>.brdf_0.<...> as <id>.<...>, <emitter id>.radiance.value or
+// .intensity.value -> lights/<id>/intensity, <shape id>.emitter.radiance.value -> the light on
+// that shape. Throws InputError saying what has no equivalent.
+std::string invrParameterName(const Scene& scene, const std::string& name);
 
 // All parameters of a zoo-style name prefix, e.g. every registered slot: "name[i]" for logs.
 std::string describeParameters(const ParameterRegistry& registry);

@@ -29,7 +29,6 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     if (ps.has_learning_rate()) po.learningRate = finite("learning_rate", ps.learning_rate());
     if (ps.has_lower()) po.lower = finite("lower", ps.lower());
     if (ps.has_upper()) po.upper = finite("upper", ps.upper());
-    if (ps.has_initial()) finite("initial", ps.initial());
     try {
       p.params.add(*p.scene, ps.name(), po);
     } catch (const InputError& e) {
@@ -48,12 +47,27 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
              "normalisation would count them wrongly (a biased gradient)");
     }
   for (int i = 0; i < o.parameters_size(); ++i) {
-    if (!o.parameters(i).has_initial()) continue;
+    const auto& ps = o.parameters(i);
     const ParameterSlot& s = p.params.slots()[size_t(i)];
-    float v = float(o.parameters(i).initial());
-    if (v < s.lower || v > s.upper)
-      fail("parameters[" + std::to_string(i) + "].initial", "outside the bounds [" + std::to_string(s.lower) + ", " + std::to_string(s.upper) + "]");
-    std::fill(p.initial.begin() + s.offset, p.initial.begin() + s.offset + s.size, v);
+    const std::string field = "parameters[" + std::to_string(i) + "]";
+    auto inBounds = [&](const std::string& f, double v) {
+      if (!std::isfinite(v)) fail(f, "must be a finite number (got " + std::to_string(v) + ")");
+      if (v < s.lower || v > s.upper)
+        fail(f, std::to_string(v) + " is outside the bounds [" + std::to_string(s.lower) + ", " + std::to_string(s.upper) + "]");
+      return float(v);
+    };
+    if (ps.has_initial() && ps.initial_values_size() > 0) fail(field, "set either initial or initial_values, not both");
+    if (ps.has_initial()) std::fill(p.initial.begin() + s.offset, p.initial.begin() + s.offset + s.size, inBounds(field + ".initial", ps.initial()));
+    const int n = ps.initial_values_size();
+    if (n == 0) continue;
+    if (n != 1 && n != s.channels && uint32_t(n) != s.size)
+      fail(field + ".initial_values",
+           "has " + std::to_string(n) + " values; '" + s.name + "' takes 1, " + std::to_string(s.channels) + " (one per channel)" +
+               (s.size != uint32_t(s.channels) ? " or " + std::to_string(s.size) + " (one per texel and channel)" : ""));
+    for (uint32_t k = 0; k < s.size; ++k) {
+      int j = n == 1 ? 0 : uint32_t(n) == s.size ? int(k) : int(k % uint32_t(s.channels));
+      p.initial[s.offset + k] = inBounds(field + ".initial_values[" + std::to_string(j) + "]", ps.initial_values(j));
+    }
   }
   // The scene's own values (the default start) may lie outside the default bounds (a black texel
   // under the positive floor): start inside them.
@@ -161,6 +175,46 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       for (float x : im.data())
         if (!std::isfinite(x)) fail("targets[" + std::to_string(v) + "]", "has non-finite pixels");
       p.givenTargets.push_back(std::move(im));
+    }
+  }
+  if (o.target_masks_size() > 0) {
+    if (o.targets_size() == 0) fail("target_masks", "masks need targets (rendered targets have nothing to mask)");
+    if (o.target_masks_size() != o.targets_size())
+      fail("target_masks", "needs one entry per target (" + std::to_string(o.targets_size()) + "), got " + std::to_string(o.target_masks_size()) +
+                               "; use {} for a view without a mask");
+    p.gradient.lossMasks.resize(size_t(views));
+    for (int v = 0; v < views; ++v) {
+      const auto& ref = o.target_masks(v);
+      if (ref.source_case() == v1::AssetRef::SOURCE_NOT_SET) continue;
+      std::string field = "optimization.target_masks[" + std::to_string(v) + "]";
+      Image im;
+      try {
+        im = readImage(assets.resolve(ref, field), false, assets.budget);
+      } catch (const InputError& e) {
+        if (std::string(e.what()).rfind(field, 0) == 0) throw;
+        rethrowWithMessage(e, field + ": " + e.what());
+      }
+      if (im.width() != p.scene->width || im.height() != p.scene->height)
+        fail("target_masks[" + std::to_string(v) + "]", "is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) +
+             ", the film is " + std::to_string(p.scene->width) + "x" + std::to_string(p.scene->height));
+      std::vector<float> w(size_t(im.width()) * size_t(im.height()));
+      double sum = 0;
+      const int c = std::min(im.channels(), 3);  // alpha is not part of the weight
+      for (int y = 0; y < im.height(); ++y)
+        for (int x = 0; x < im.width(); ++x) {
+          double m = 0;
+          for (int k = 0; k < c; ++k) m += im.at(x, y, k);
+          m /= c;
+          if (!(m >= -1e-6 && m <= 1 + 1e-6))
+            fail("target_masks[" + std::to_string(v) + "]", "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(m) +
+                 "; mask values must be in [0, 1]");
+          w[size_t(y) * size_t(im.width()) + size_t(x)] = float(std::clamp(m, 0.0, 1.0));
+          sum += std::clamp(m, 0.0, 1.0);
+        }
+      if (!(sum > 0)) fail("target_masks[" + std::to_string(v) + "]", "excludes every pixel");
+      const double norm = double(w.size()) / sum;  // mean 1: the loss is the mean over what the mask keeps
+      for (float& x : w) x = float(x * norm);
+      p.gradient.lossMasks[size_t(v)] = std::move(w);
     }
   }
   return p;

@@ -18,6 +18,15 @@ Vec3 latLongToDirection(Vec2 uv) {
 
 namespace {
 
+// Lat-long coordinates of world direction w on the (possibly rotated) map, and the inverse.
+Vec2 mapUv(const Light& l, Vec3 w) {
+  return directionToLatLong({l.envCosY * w.x - l.envSinY * w.z, w.y, l.envSinY * w.x + l.envCosY * w.z});
+}
+Vec3 mapDirection(const Light& l, Vec2 uv) {
+  Vec3 d = latLongToDirection(uv);
+  return {l.envCosY * d.x + l.envSinY * d.z, d.y, -l.envSinY * d.x + l.envCosY * d.z};
+}
+
 // Piecewise-constant lookup at lat-long coordinates, the same cells the sampler uses, so eval and
 // pdf stay consistent.
 Rgb mapRadiance(const Light& light, Vec2 uv) {
@@ -49,12 +58,12 @@ LightSample mapSample(const Light& light, Vec3 w, Vec2 uv, float pdf) {
 
 Rgb environmentRadiance(const Light& light, Vec3 w) {
   if (light.kind == LightKind::ConstantEnvironment) return light.radiance * light.scale;
-  return mapRadiance(light, directionToLatLong(w));
+  return mapRadiance(light, mapUv(light, w));
 }
 
 float environmentPdf(const Light& light, Vec3 w) {
   if (light.kind == LightKind::ConstantEnvironment) return kUniformSpherePdf;
-  return mapPdf(light, directionToLatLong(w));
+  return mapPdf(light, mapUv(light, w));
 }
 
 void buildEnvironmentDistribution(Light& light) {
@@ -69,7 +78,7 @@ void buildEnvironmentDistribution(Light& light) {
 
 LightSample environmentSampleAt(const Light& light, Vec3 w) {
   if (light.kind != LightKind::ConstantEnvironment) {
-    const Vec2 uv = directionToLatLong(w);  // once, for both the pdf and the radiance
+    const Vec2 uv = mapUv(light, w);  // once, for both the pdf and the radiance
     return mapSample(light, w, uv, mapPdf(light, uv));
   }
   LightSample s;
@@ -93,10 +102,10 @@ LightSample sampleEnvironment(const Light& light, Vec2 u2) {
     s.dist = std::numeric_limits<float>::infinity();
     return s;
   }
-  const Vec3 w = latLongToDirection(uv);
+  const Vec3 w = mapDirection(light, uv);
   // The density is exact for the sampled cell (pdf() recomputes the same); the radiance is looked
   // up where every other evaluation at w looks it up.
-  return mapSample(light, w, directionToLatLong(w), pdfUv / (2.f * kPi * kPi * sinTheta));
+  return mapSample(light, w, mapUv(light, w), pdfUv / (2.f * kPi * kPi * sinTheta));
 }
 
 }  // namespace invr

@@ -66,6 +66,8 @@ struct Light {
   // Environments (environment: lat-long image with +y up).
   std::shared_ptr<Image> envImage;
   Distribution2D envDistribution;
+  // The map turned about +y by this angle: a world direction is looked up at Ry(-angle) w.
+  float envCosY = 1.f, envSinY = 0.f;
 
   bool isDelta() const { return kind == LightKind::Point || kind == LightKind::Spot; }
   bool isInfinite() const { return kind == LightKind::Environment || kind == LightKind::ConstantEnvironment; }

@@ -30,9 +30,13 @@ double ImageErrorMeter::measure(const std::vector<float>& theta, std::vector<Ima
     Image im = renderView(*problem_.scene, views_[i], options_).image;
     const auto& a = im.data();
     const auto& b = reference_[i].data();
+    const auto& masks = problem_.gradient.lossMasks;
+    const std::vector<float>* mask = size_t(views_[i]) < masks.size() && !masks[size_t(views_[i])].empty() ? &masks[size_t(views_[i])] : nullptr;
+    const size_t channels = size_t(im.channels());
     for (size_t k = 0; k < a.size(); ++k) {
       double d = double(a[k]) - double(b[k]);
-      sum += d * d / (double(b[k]) * double(b[k]) + kEpsilon);
+      double w = mask ? double((*mask)[k / channels]) : 1.0;  // masks have mean 1
+      sum += w * d * d / (double(b[k]) * double(b[k]) + kEpsilon);
     }
     count += a.size();
     if (renders) renders->push_back(std::move(im));

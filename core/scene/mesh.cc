@@ -34,6 +34,48 @@ void TriangleMesh::transform(const Affine& xf) {
   }
 }
 
+void computeSmoothNormals(TriangleMesh& m) {
+  std::vector<Vec3> n(m.positions.size(), Vec3(0.f));
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    const uint32_t* i = &m.indices[3 * t];
+    Vec3 p[3] = {m.positions[i[0]], m.positions[i[1]], m.positions[i[2]]};
+    Vec3 fn = cross(p[1] - p[0], p[2] - p[0]);
+    if (!(lengthSquared(fn) > 0.f)) continue;
+    fn = normalize(fn);
+    for (int k = 0; k < 3; ++k) {
+      Vec3 a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+      float la = length(a), lb = length(b);
+      if (!(la > 0.f && lb > 0.f)) continue;
+      float angle = std::acos(std::clamp(dot(a, b) / (la * lb), -1.f, 1.f));
+      n[i[k]] += fn * angle;
+    }
+  }
+  for (size_t v = 0; v < n.size(); ++v) {
+    // A vertex no triangle gives a direction (isolated or only degenerate) keeps +z: unused.
+    n[v] = lengthSquared(n[v]) > 0.f ? normalize(n[v]) : Vec3(0, 0, 1);
+  }
+  m.normals = std::move(n);
+}
+
+void TriangleMesh::flipWinding(bool flipNormals) {
+  for (size_t t = 0; t + 2 < indices.size(); t += 3) std::swap(indices[t + 1], indices[t + 2]);
+  if (flipNormals)
+    for (auto& n : normals) n = -n;
+}
+
+TriangleMesh makeDisk(int segments) {
+  TriangleMesh m;
+  m.positions.push_back({0, 0, 0});
+  m.uvs.push_back({0, 0});
+  for (int j = 0; j < segments; ++j) {
+    float phi = 2.f * kPi * float(j) / float(segments);
+    m.positions.push_back({std::cos(phi), std::sin(phi), 0});
+    m.uvs.push_back({1.f, float(j) / float(segments)});  // (radius, angle / 2 pi)
+  }
+  for (int j = 0; j < segments; ++j) m.indices.insert(m.indices.end(), {0u, uint32_t(1 + j), uint32_t(1 + (j + 1) % segments)});
+  return m;
+}
+
 TriangleMesh makeQuad() {
   TriangleMesh m;
   m.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};

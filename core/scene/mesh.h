@@ -19,11 +19,15 @@ struct TriangleMesh {
   size_t triangleCount() const { return indices.size() / 3; }
   float triangleArea(size_t tri) const;
   void transform(const Affine& xf);
+  // Reverses every triangle's winding (so its geometric normal); with `normals` also negates the
+  // vertex normals.
+  void flipWinding(bool normals);
 };
 
 TriangleMesh makeQuad();
 TriangleMesh makeBox();
 TriangleMesh makeSphere(int rings);
+TriangleMesh makeDisk(int segments);  // radius 1 in the xy plane, normal +z
 TriangleMesh makeCylinder(int segments, bool capped);
 TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments);
 
@@ -44,5 +48,9 @@ TriangleMesh parseMesh(const std::string& bytes, MeshFormat format, const std::s
 // shared by more than two triangles (non-manifold) or zero total area.
 // Degenerate (zero-area) triangles are removed; returns how many were.
 size_t validateMesh(TriangleMesh& mesh, const std::string& what);
+
+// Vertex normals for a mesh that has none: each vertex's triangle normals weighted by the
+// triangle's angle at the vertex (independent of how finely the surface is tessellated).
+void computeSmoothNormals(TriangleMesh& mesh);
 
 }  // namespace invr

@@ -53,7 +53,22 @@ Affine transformOf(const v1::Transform& t, const std::string& field) {
   if (s.x == 0.f || s.y == 0.f || s.z == 0.f) fail(field + ".scale", "components must be non-zero");
   Vec3 r = vec(t.rotate_xyz_degrees(), field + ".rotate_xyz_degrees");
   Vec3 tr = vec(t.translate(), field + ".translate");
-  return Affine::translate(tr) * Affine::rotate(2, r.z) * Affine::rotate(1, r.y) * Affine::rotate(0, r.x) * Affine::scale(s);
+  Affine trs = Affine::translate(tr) * Affine::rotate(2, r.z) * Affine::rotate(1, r.y) * Affine::rotate(0, r.x) * Affine::scale(s);
+  if (t.matrix_size() == 0) return trs;
+  if (t.matrix_size() != 12 && t.matrix_size() != 16)
+    fail(field + ".matrix", "needs 12 numbers (3 rows of 4) or 16 (4 rows of 4), got " + std::to_string(t.matrix_size()));
+  for (int i = 0; i < t.matrix_size(); ++i)
+    if (!std::isfinite(t.matrix(i))) fail(field + ".matrix", "element " + std::to_string(i) + " is not a finite number");
+  if (t.matrix_size() == 16 && (t.matrix(12) != 0 || t.matrix(13) != 0 || t.matrix(14) != 0 || t.matrix(15) != 1))
+    fail(field + ".matrix", "the last row must be 0 0 0 1 (projective transforms are not supported)");
+  Affine m;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 4; ++j) m.m[i][j] = float(t.matrix(i * 4 + j));
+  double det = double(m.m[0][0]) * (double(m.m[1][1]) * m.m[2][2] - double(m.m[1][2]) * m.m[2][1]) -
+               double(m.m[0][1]) * (double(m.m[1][0]) * m.m[2][2] - double(m.m[1][2]) * m.m[2][0]) +
+               double(m.m[0][2]) * (double(m.m[1][0]) * m.m[2][1] - double(m.m[1][1]) * m.m[2][0]);
+  if (!(std::abs(det) > 1e-12)) fail(field + ".matrix", "is singular (its 3x3 part has determinant " + std::to_string(det) + ")");
+  return m * trs;
 }
 
 std::shared_ptr<Image> loadTextureImage(const v1::Texture& t, const AssetResolver& assets, const std::string& field,
@@ -118,6 +133,7 @@ void checkRoughness(const Texture& t, const std::string& field) {
 Material material(const v1::Material& m, const AssetResolver& assets, const std::string& field) {
   Material out;
   out.name = m.name();
+  out.oneSided = m.one_sided();
   switch (m.kind_case()) {
     case v1::Material::kDiffuse:
       out.kind = BsdfKind::Diffuse;
@@ -196,7 +212,13 @@ TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const st
       chargeMesh(assets, uint64_t(seg + 1) * uint64_t(tube + 1), uint64_t(2) * uint64_t(seg) * uint64_t(tube), field + ".torus_knot");
       return makeTorusKnot(k.p() != 0 ? k.p() : 2, k.q() != 0 ? k.q() : 3, float(r), seg, tube);
     }
-    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder or torus_knot)");
+    case v1::Shape::kDisk: {
+      int seg = s.disk().segments() > 0 ? s.disk().segments() : 64;
+      if (seg < 3 || seg > 65536) fail(field + ".disk.segments", "must be in 3..65536");
+      chargeMesh(assets, uint64_t(seg) + 1, uint64_t(seg), field + ".disk");
+      return makeDisk(seg);
+    }
+    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder, disk or torus_knot)");
   }
 }
 
@@ -244,8 +266,14 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
       if (what.rfind(field, 0) == 0) throw;
       rethrowWithMessage(e, field + ": " + what);
     }
+    if (s.face_normals()) mesh.normals.clear();
+    if (s.face_normals() && s.smooth_normals()) fail(field, "face_normals and smooth_normals exclude each other");
+    if (s.flip_tex_coords())
+      for (auto& uv : mesh.uvs) uv.y = 1.f - uv.y;
     mesh.transform(xf);
+    if (s.flip_normals()) mesh.flipWinding(true);
     validateMesh(mesh, field);
+    if (s.smooth_normals() && mesh.normals.empty()) computeSmoothNormals(mesh);
     scene->meshes.push_back(std::move(mesh));
     scene->meshNames.push_back(s.name());
     scene->meshMaterial.push_back(mit->second);
@@ -305,6 +333,12 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
         out.envImage = loadTextureImage(t, assets, field + ".environment.radiance", true);
         if (t.has_scale()) out.scale *= optionalScale(true, t.scale(), field + ".environment.radiance.scale");
         buildEnvironmentDistribution(out);
+        {
+          const double a = l.environment().rotate_y_degrees();
+          if (!std::isfinite(a)) fail(field + ".environment.rotate_y_degrees", "must be a finite angle");
+          out.envCosY = float(std::cos(a * M_PI / 180.0));
+          out.envSinY = float(std::sin(a * M_PI / 180.0));
+        }
         break;
       }
       case v1::Light::kConstantEnvironment:
@@ -340,6 +374,9 @@ std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver
   switch (job.scene_source_case()) {
     case v1::JobSpec::kZoo: return buildScene(zooScene(job.zoo()), assets, use);
     case v1::JobSpec::kScene: return buildScene(job.scene(), assets, use);
+    case v1::JobSpec::kMitsuba:
+      throw InputError("mitsuba: a Mitsuba scene is imported into 'scene' by the client (invr render, optimize, run, submit and plan do it); "
+                       "import it first (invr import) to use the job elsewhere");
     default: throw InputError("job: set either 'zoo' (a built-in scene name) or 'scene'");
   }
 }

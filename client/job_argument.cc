@@ -1,0 +1,162 @@
+#include "client/job_argument.h"
+
+#include <iostream>
+
+#include "core/diff/zoo_jobs.h"
+#include "core/error.h"
+#include "core/io/job_io.h"
+#include "core/io/mitsuba_import.h"
+
+namespace invr::cli {
+
+namespace v1 = invr::v1;
+namespace fs = std::filesystem;
+
+bool isJobFile(const std::string& arg) { return arg.size() > 5 && arg.substr(arg.size() - 5) == ".json"; }
+
+void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams) {
+  cmd->add_option("-D,--define", a.defines, "NAME=VALUE: set a Mitsuba scene's <default name=NAME> (repeatable)");
+  if (withParams)
+    cmd->add_option("--param", a.params,
+                    "NAME[=V[,V,V]]: recover this parameter (invr or Mitsuba name, e.g. red.reflectance.value=0.01,0.2,0.9), starting "
+                    "at the values given; replaces the job's parameter list (repeatable)");
+}
+
+namespace {
+
+std::map<std::string, std::string> parseDefines(const std::vector<std::string>& defines) {
+  std::map<std::string, std::string> out;
+  for (const auto& d : defines) {
+    auto eq = d.find('=');
+    if (eq == std::string::npos || eq == 0) throw InputError("-D '" + d + "': expected NAME=VALUE");
+    out[d.substr(0, eq)] = d.substr(eq + 1);
+  }
+  return out;
+}
+
+void printWarnings(const std::vector<std::string>& warnings) {
+  for (const auto& w : warnings) std::cerr << "warning: " << w << "\n";
+}
+
+// `p` (absolute, or relative to the working directory) relative to `base` where it lies below or
+// beside it; absolute otherwise would be just as right, but relative paths keep a job movable.
+std::string pathRelativeTo(const fs::path& p, const fs::path& base) {
+  fs::path rel = fs::absolute(p).lexically_normal().lexically_relative(fs::absolute(base).lexically_normal());
+  return rel.empty() ? fs::absolute(p).lexically_normal().string() : rel.string();
+}
+
+}  // namespace
+
+void importMitsubaIntoJob(v1::JobSpec& job, const fs::path& baseDir, std::vector<std::string>& warnings) {
+  const auto& m = job.mitsuba();
+  if (m.path().empty()) throw InputError("mitsuba.path: empty (the .xml scene file, relative to the job file)");
+  fs::path xml(m.path());
+  if (xml.is_relative()) xml = baseDir / xml;
+  if (!fs::exists(xml)) throw InputError("mitsuba.path: '" + xml.string() + "' not found");
+  MitsubaImportOptions opt;
+  for (const auto& [k, v] : m.defaults()) opt.defaults[k] = v;
+  MitsubaImport imp = importMitsubaScene(xml, opt);
+  warnings.insert(warnings.end(), imp.warnings.begin(), imp.warnings.end());
+  const fs::path xmlDir = xml.has_parent_path() ? xml.parent_path() : fs::path(".");
+  forEachAssetRef(imp.job, [&](v1::AssetRef& ref, const std::string&) {
+    if (ref.has_path() && fs::path(ref.path()).is_relative()) ref.set_path(pathRelativeTo(xmlDir / ref.path(), baseDir));
+  });
+  const v1::RenderSettings& r = imp.job.render();
+  auto* jr = job.mutable_render();
+  if (jr->spp() == 0) jr->set_spp(r.spp());
+  if (jr->russian_roulette_depth() == 0) jr->set_russian_roulette_depth(r.russian_roulette_depth());
+  if (jr->max_depth() == 0) {
+    if (!job.has_optimization()) {
+      jr->set_max_depth(r.max_depth());
+    } else if (job.optimization().max_depth() == 0 && r.max_depth() > 1) {
+      if (job.optimization().method() == v1::METHOD_PT)
+        job.mutable_optimization()->set_max_depth(r.max_depth());
+      else
+        warnings.push_back(xml.string() + ": the integrator's depth (" + std::to_string(r.max_depth()) +
+                           " vertices) is not used: the job's method differentiates direct illumination; set optimization.max_depth "
+                           "with method METHOD_PT for longer paths");
+    }
+  }
+  if (job.name().empty()) job.set_name(imp.job.name());
+  *job.mutable_scene() = imp.job.scene();  // replaces `mitsuba` in the oneof
+}
+
+v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs) {
+  auto defines = parseDefines(sceneArgs.defines);
+  std::vector<std::string> warnings;
+  v1::JobSpec job;
+  if (isJobFile(arg)) {
+    fs::path p(arg);
+    if (!fs::exists(p)) throw InputError("job file '" + arg + "': not found");
+    assets.baseDir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+    job = loadJobFile(p);
+    if (job.has_mitsuba()) {
+      for (const auto& [k, v] : defines) (*job.mutable_mitsuba()->mutable_defaults())[k] = v;
+      try {
+        importMitsubaIntoJob(job, assets.baseDir, warnings);
+      } catch (const InputError& e) {
+        rethrowWithMessage(e, "job file '" + arg + "': " + e.what());
+      }
+    } else if (!defines.empty()) {
+      throw InputError("-D: applies to Mitsuba scenes only ('" + arg + "' does not name one)");
+    }
+  } else if (isMitsubaSceneFile(arg)) {
+    fs::path p(arg);
+    if (!fs::exists(p)) throw InputError("Mitsuba scene '" + arg + "': not found");
+    MitsubaImportOptions opt;
+    opt.defaults = defines;
+    MitsubaImport imp = importMitsubaScene(p, opt);
+    warnings = imp.warnings;
+    job = std::move(imp.job);
+    assets.baseDir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  } else {
+    if (!defines.empty()) throw InputError("-D: applies to Mitsuba scenes only ('" + arg + "' is a zoo scene name)");
+    job = zooJob(arg);  // InputError listing the known names
+  }
+  printWarnings(warnings);
+  return job;
+}
+
+v1::JobSpec optimizationJobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs) {
+  v1::JobSpec job = jobFromArgument(arg, assets, sceneArgs);
+  const bool xml = isMitsubaSceneFile(arg);
+  if (sceneArgs.params.empty()) {
+    if (job.has_optimization() && job.optimization().parameters_size() > 0) return job;
+    if (xml)
+      throw InputError("'" + arg + "' is a Mitsuba scene: name what to recover with --param NAME[=INITIAL] (e.g. --param "
+                       "red.reflectance.value=0.01,0.2,0.9), or write a job with `invr import " + arg +
+                       " -o job.json` and add an 'optimization' block");
+    throw InputError("job file '" + arg + "': has no 'optimization' parameters (see `invr example cornell`), or name them with --param");
+  }
+  auto* o = job.mutable_optimization();
+  o->clear_parameters();
+  for (const auto& p : sceneArgs.params) {
+    auto* ps = o->add_parameters();
+    auto eq = p.find('=');
+    ps->set_name(p.substr(0, eq));
+    if (ps->name().empty()) throw InputError("--param '" + p + "': expected NAME or NAME=V[,V,V]");
+    if (eq == std::string::npos) continue;
+    std::string list = p.substr(eq + 1);
+    size_t start = 0;
+    while (start <= list.size()) {
+      size_t comma = list.find(',', start);
+      std::string tok = list.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      char* end = nullptr;
+      double v = std::strtod(tok.c_str(), &end);
+      if (tok.empty() || end != tok.c_str() + tok.size() || !std::isfinite(v))
+        throw InputError("--param '" + p + "': '" + tok + "' is not a number");
+      ps->add_initial_values(v);
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+  }
+  // A scene file's own depth: the optimisation renders and differentiates what the file renders.
+  const int depth = job.render().max_depth();
+  if (xml && o->max_depth() == 0 && depth > 1) {
+    o->set_max_depth(depth);
+    if (o->method() == v1::METHOD_UNSPECIFIED) o->set_method(v1::METHOD_PT);
+  }
+  return job;
+}
+
+}  // namespace invr::cli
