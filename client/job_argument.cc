@@ -38,11 +38,14 @@ void printWarnings(const std::vector<std::string>& warnings) {
   for (const auto& w : warnings) std::cerr << "warning: " << w << "\n";
 }
 
-// `p` (absolute, or relative to the working directory) relative to `base` where it lies below or
-// beside it; absolute otherwise would be just as right, but relative paths keep a job movable.
+// `p` (absolute, or relative to the working directory) relative to `base` where it lies in base's
+// folder tree or its parent's (a job next to its scene stays movable with it); absolute otherwise.
 std::string pathRelativeTo(const fs::path& p, const fs::path& base) {
-  fs::path rel = fs::absolute(p).lexically_normal().lexically_relative(fs::absolute(base).lexically_normal());
-  return rel.empty() ? fs::absolute(p).lexically_normal().string() : rel.string();
+  const fs::path abs = fs::absolute(p).lexically_normal();
+  fs::path rel = abs.lexically_relative(fs::absolute(base).lexically_normal());
+  const std::string r = rel.generic_string();
+  if (rel.empty() || r.rfind("../../", 0) == 0 || r == "../..") return abs.string();
+  return rel.string();
 }
 
 }  // namespace

@@ -2,10 +2,14 @@
 #include "core/diff/problem.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
 
 #include "core/diff/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
+#include "core/image/image.h"
 #include "core/scene/zoo.h"
 
 namespace invr {
@@ -114,6 +118,127 @@ TEST(Problem, EveryZooSceneHasAValidJob) {
     EXPECT_GT(p.params.size(), 0u) << e.name;
     EXPECT_NE(p.initial, p.truth) << e.name;
   }
+}
+
+TEST(Problem, InitialValuesPerChannel) {
+  auto job = zooJob("cornell");
+  auto* ps = job.mutable_optimization()->mutable_parameters(0);
+  ASSERT_EQ(ps->name(), "materials/red/albedo");
+  ps->clear_initial();
+  for (double v : {0.01, 0.2, 0.9}) ps->add_initial_values(v);
+  Problem p = buildProblem(job, {}, SceneUse::Validate);
+  const ParameterSlot& s = p.params.slots()[0];
+  EXPECT_FLOAT_EQ(p.initial[s.offset + 0], 0.01f);
+  EXPECT_FLOAT_EQ(p.initial[s.offset + 1], 0.2f);
+  EXPECT_FLOAT_EQ(p.initial[s.offset + 2], 0.9f);
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial_values": [0.1, 0.2]}]})"),
+                  "optimization.parameters[0].initial_values: has 2 values; 'materials/red/albedo' takes 1, 3 (one per channel)");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial_values": [0.1, 1.2, 0.3]}]})"),
+                  "optimization.parameters[0].initial_values[1]: outside the bounds");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial": 0.5, "initial_values": [0.1]}]})"),
+                  "set either initial or initial_values");
+}
+
+TEST(Problem, MitsubaNamesNameTheSameParameters) {
+  auto scene = buildScene(zooScene("cornell"), {}, SceneUse::Validate);
+  EXPECT_EQ(invrParameterName(*scene, "red.reflectance.value"), "materials/red/albedo");
+  EXPECT_EQ(invrParameterName(*scene, "red.brdf_0.reflectance.value"), "materials/red/albedo");
+  EXPECT_EQ(invrParameterName(*scene, "left.bsdf.reflectance.value"), "materials/red/albedo");  // nested in shape 'left'
+  EXPECT_EQ(invrParameterName(*scene, "ceiling_light.radiance.value"), "lights/ceiling_light/intensity");
+  EXPECT_EQ(invrParameterName(*scene, "light.emitter.radiance.value"), "lights/ceiling_light/intensity");
+  EXPECT_EQ(invrParameterName(*scene, "materials/red/albedo"), "materials/red/albedo");
+  auto err = [&](const std::string& n) {
+    try {
+      invrParameterName(*scene, n);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_MENTIONS(err("blue.reflectance.value"), "no material (bsdf) with id 'blue'");
+  EXPECT_MENTIONS(err("red.eta.value"), "property 'eta' has no invr parameter");
+  EXPECT_MENTIONS(err("floor.emitter.radiance.value"), "shape 'floor' does not emit");
+  // Both spellings of one value: listed twice.
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo"}, {"name": "red.reflectance.value"}]})"),
+                  "the same value as parameter 'materials/red/albedo'");
+}
+
+// Masked-out pixels take no part in the loss or its gradient: junk there changes nothing, while
+// without the mask it changes both.
+TEST(Problem, TargetMasksExcludePixelsFromLossAndGradient) {
+  namespace fs = std::filesystem;
+  fs::path dir = fs::temp_directory_path() / ("invr_mask_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  v1::JobSpec job;
+  *job.mutable_scene() = zooScene("cornell");
+  job.mutable_scene()->mutable_film()->set_width(32);
+  job.mutable_scene()->mutable_film()->set_height(32);
+  auto* o = job.mutable_optimization();
+  o->set_method(v1::METHOD_PT);
+  o->set_target_spp(8);
+  auto* ps = o->add_parameters();
+  ps->set_name("materials/red/albedo");
+  ps->set_initial(0.3);
+  {
+    Problem truth = buildProblem(job);
+    Image t = renderTarget(truth, 0), junk = t, mask(32, 32, 3), ones(32, 32, 3);
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x) {
+        if (x < 12) junk.setRgb(x, y, Rgb(5.f, 0.f, 5.f));  // the left (red) wall's side
+        mask.setRgb(x, y, Rgb(x < 12 ? 0.f : 1.f));
+        ones.setRgb(x, y, Rgb(1.f));
+      }
+    writeImage(dir / "clean.exr", t);
+    writeImage(dir / "junk.exr", junk);
+    writeImage(dir / "mask.png", mask);
+    writeImage(dir / "ones.png", ones);
+  }
+  AssetResolver assets;
+  assets.baseDir = dir;
+  auto evaluate = [&](const std::string& target, const std::string& mask) {
+    v1::JobSpec j = job;
+    j.mutable_optimization()->add_targets()->set_path(target);
+    if (!mask.empty()) j.mutable_optimization()->add_target_masks()->set_path(mask);
+    Problem p = buildProblem(j, assets);
+    p.params.write(p.initial, *p.scene);
+    GradientEngine engine(*p.scene, p.params, p.givenTargets, p.gradient);
+    EngineSession session;
+    return engine.evaluate(shardRequest(p, evaluationAt(p, 0), 0), session);
+  };
+  GradientResult cleanMasked = evaluate("clean.exr", "mask.png"), junkMasked = evaluate("junk.exr", "mask.png");
+  EXPECT_EQ(cleanMasked.gradient, junkMasked.gradient);
+  EXPECT_EQ(cleanMasked.stats.loss, junkMasked.stats.loss);
+  GradientResult clean = evaluate("clean.exr", ""), junk = evaluate("junk.exr", "");
+  EXPECT_NE(clean.gradient, junk.gradient);
+  EXPECT_GT(junk.stats.loss, 10 * std::abs(clean.stats.loss));
+  // A mask that keeps everything is no mask.
+  GradientResult cleanOnes = evaluate("clean.exr", "ones.png");
+  for (size_t i = 0; i < clean.gradient.size(); ++i) EXPECT_NEAR(cleanOnes.gradient[i], clean.gradient[i], 1e-6 * std::abs(clean.gradient[i]) + 1e-12);
+  // Mistakes name the field.
+  auto maskError = [&](const std::string& optimizationJson) {
+    try {
+      v1::JobSpec j = job;
+      auto extra = parseJobJson(R"({"optimization": )" + optimizationJson + "}", "job.json");
+      j.mutable_optimization()->MergeFrom(extra.optimization());
+      buildProblem(j, assets, SceneUse::Validate);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_MENTIONS(maskError(R"({"target_masks": [{"path": "mask.png"}]})"), "optimization.target_masks: masks need targets");
+  Image black(32, 32, 3), small(8, 8, 3);
+  writeImage(dir / "black.png", black);
+  writeImage(dir / "small.png", small);
+  EXPECT_MENTIONS(maskError(R"({"targets": [{"path": "clean.exr"}], "target_masks": [{"path": "black.png"}]})"),
+                  "optimization.target_masks[0]: excludes every pixel");
+  EXPECT_MENTIONS(maskError(R"({"targets": [{"path": "clean.exr"}], "target_masks": [{"path": "small.png"}]})"),
+                  "optimization.target_masks[0]: is 8x8, the film is 32x32");
+  EXPECT_MENTIONS(maskError(R"({"targets": [{"path": "clean.exr"}], "target_masks": [{"path": "mask.png"}, {"path": "mask.png"}]})"),
+                  "needs one entry per target");
+  // An empty entry leaves its view unmasked.
+  EXPECT_EQ(maskError(R"({"targets": [{"path": "clean.exr"}], "target_masks": [{}]})"), "");
+  fs::remove_all(dir);
 }
 
 }  // namespace
