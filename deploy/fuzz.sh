@@ -7,7 +7,7 @@
 #   FUZZ_SECONDS=0 bash deploy/fuzz.sh        # build, run each corpus input once, no fuzzing
 #   FUZZ_SEED=0 FUZZ_SECONDS=600 bash deploy/fuzz.sh   # a random seed (the default, 1, repeats)
 #
-# Targets: fuzz_obj fuzz_ply fuzz_png fuzz_exr fuzz_hdr fuzz_job_json fuzz_task_result.
+# Targets: fuzz_obj fuzz_ply fuzz_png fuzz_exr fuzz_hdr fuzz_job_json fuzz_mitsuba_xml fuzz_task_result.
 # New inputs go to build-fuzz/corpus/<target>/ (kept between runs, never into the repository);
 # crashes to build-fuzz/artifacts/<target>-crash-*, with the log in build-fuzz/logs/<target>.log.
 # Reproduce one with `build-fuzz/bin/<target> <file>`; INVR_FUZZ_VERBOSE=1 says why inputs are rejected.
@@ -15,7 +15,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-ALL_TARGETS=(fuzz_obj fuzz_ply fuzz_png fuzz_exr fuzz_hdr fuzz_job_json fuzz_task_result)
+ALL_TARGETS=(fuzz_obj fuzz_ply fuzz_png fuzz_exr fuzz_hdr fuzz_job_json fuzz_mitsuba_xml fuzz_task_result)
 TARGETS=("$@")
 [ ${#TARGETS[@]} -eq 0 ] && TARGETS=("${ALL_TARGETS[@]}")
 SECONDS_PER_TARGET="${FUZZ_SECONDS:-25}"
@@ -76,6 +76,7 @@ for t in "${TARGETS[@]}"; do
   args=(-max_total_time="$SECONDS_PER_TARGET" -seed="${FUZZ_SEED:-1}" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1
         -artifact_prefix="$BUILD/artifacts/$t-")
   [ "$t" = fuzz_job_json ] && args+=(-dict=tests/fuzz/job_json.dict)
+  [ "$t" = fuzz_mitsuba_xml ] && args+=(-dict=tests/fuzz/mitsuba_xml.dict)
   # FUZZ_SECONDS=0: run every input of the corpus once, no fuzzing.
   [ "$SECONDS_PER_TARGET" = 0 ] && args=(-runs=0 -rss_limit_mb=2048 -timeout=10 -print_final_stats=1
                                          -artifact_prefix="$BUILD/artifacts/$t-")

@@ -53,7 +53,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     auto inBounds = [&](const std::string& f, double v) {
       if (!std::isfinite(v)) fail(f, "must be a finite number (got " + std::to_string(v) + ")");
       if (v < s.lower || v > s.upper)
-        fail(f, std::to_string(v) + " is outside the bounds [" + std::to_string(s.lower) + ", " + std::to_string(s.upper) + "]");
+        fail(f, "outside the bounds [" + std::to_string(s.lower) + ", " + std::to_string(s.upper) + "] (got " + std::to_string(v) + ")");
       return float(v);
     };
     if (ps.has_initial() && ps.initial_values_size() > 0) fail(field, "set either initial or initial_values, not both");

@@ -11,11 +11,11 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/io/job_io.h"
 #include "core/io/limits.h"
 
 namespace invr {
 
-namespace v1 = invr::v1;
 namespace fs = std::filesystem;
 
 bool isMitsubaSceneFile(const std::string& path) {
@@ -28,6 +28,24 @@ bool isMitsubaSceneFile(const std::string& path) {
 namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
+// Scene files describe; meshes and images carry the bulk. Anything larger is a mistake (or
+// /dev/zero named in an <include>).
+constexpr uintmax_t kMaxSceneFileBytes = uintmax_t(64) << 20;
+
+std::string readSceneFile(const fs::path& p, const std::string& what) {
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) throw InputError(what + " '" + p.string() + "': not a readable file");
+  const uintmax_t size = fs::file_size(p, ec);
+  if (ec) throw InputError(what + " '" + p.string() + "': cannot be read");
+  if (size > kMaxSceneFileBytes)
+    throw ResourceError(what + " '" + p.string() + "': " + humanBytes(size) + " (scene files are limited to " + humanBytes(kMaxSceneFileBytes) + ")");
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw InputError(what + " '" + p.string() + "': cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
 
 // Row-major 4x4 affine transform in double precision (Mitsuba composes to_world this way).
 struct M4 {
@@ -265,6 +283,7 @@ class Importer {
     if (c.attribute("id")) {
       std::string id = c.attribute("id").value();
       if (id.empty()) fail(c, "empty id");
+      if (id.size() > inputLimits().maxNameBytes) fail(c, "id longer than " + std::to_string(inputLimits().maxNameBytes) + " bytes");
       if (!ids_.emplace(id, c).second) fail(c, "id \"" + id + "\" is used twice (first at " + where(ids_[id]) + ")");
     }
     for (auto k : c.children())
@@ -278,12 +297,14 @@ class Importer {
     for (const auto& q : includeStack_)
       if (fs::weakly_canonical(q) == fs::weakly_canonical(p)) fail(n, "includes '" + file + "' recursively");
     if (includeStack_.size() > 16) fail(n, "includes nested more than 16 deep");
-    std::ifstream in(p, std::ios::binary);
-    if (!in) fail(n, "cannot read included file '" + p.string() + "'");
-    std::stringstream ss;
-    ss << in.rdbuf();
+    std::string text;
+    try {
+      text = readSceneFile(p, "included file");
+    } catch (const InputError& e) {
+      rethrowWithMessage(e, where(n) + ": " + e.what());
+    }
     includeStack_.push_back(p);
-    pugi::xml_node scene = load(ss.str(), p.parent_path(), p.string(), false);
+    pugi::xml_node scene = load(text, p.parent_path(), p.string(), false);
     collectTopLevel(scene);
     includeStack_.pop_back();
   }
@@ -1127,15 +1148,19 @@ class Importer {
 MitsubaImport importMitsubaSceneText(const std::string& xml, const fs::path& baseDir, const std::string& sourceName,
                                      const MitsubaImportOptions& options) {
   Importer im(options);
-  return im.run(xml, baseDir, sourceName);
+  MitsubaImport out = im.run(xml, baseDir, sourceName);
+  // The limits every job meets (name lengths, counts), whichever way it was written.
+  try {
+    validateJobSpec(out.job);
+  } catch (const InputError& e) {
+    rethrowWithMessage(e, sourceName + ": " + e.what());
+  }
+  return out;
 }
 
 MitsubaImport importMitsubaScene(const fs::path& xml, const MitsubaImportOptions& options) {
-  std::ifstream in(xml, std::ios::binary);
-  if (!in) throw InputError("Mitsuba scene '" + xml.string() + "': cannot be read");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return importMitsubaSceneText(ss.str(), xml.has_parent_path() ? xml.parent_path() : fs::path("."), xml.string(), options);
+  std::string text = readSceneFile(xml, "Mitsuba scene");
+  return importMitsubaSceneText(text, xml.has_parent_path() ? xml.parent_path() : fs::path("."), xml.string(), options);
 }
 
 }  // namespace invr

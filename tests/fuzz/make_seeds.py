@@ -446,6 +446,48 @@ def job_dictionary():
     (ROOT / "tests/fuzz/job_json.dict").write_text("\n".join(lines) + "\n")
 
 
+# --------------------------------------------------------------------------------------- Mitsuba XML
+
+MITSUBA_CAMERA = """<default name="spp" value="4"/>
+<integrator type="path"><integer name="max_depth" value="$spp"/><integer name="rr_depth" value="3"/></integrator>
+<sensor type="perspective" id="cam"><float name="fov" value="40"/><string name="fov_axis" value="smaller"/>
+<transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+<sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+<film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/><rfilter type="gaussian"/></film></sensor>
+"""
+
+MITSUBA_SEEDS = {
+    "room.xml": """<bsdf type="twosided" id="w"><bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.25, 0.125"/></bsdf></bsdf>
+<shape type="rectangle" id="floor"><transform name="to_world"><scale value="2"/><rotate x="1" angle="-90"/><translate y="-1"/></transform><ref id="w"/></shape>
+<shape type="rectangle" id="lamp"><transform name="to_world"><scale x="0.5" y="0.25"/><rotate value="1 0 0" angle="90"/><translate value="0 1.5 0"/></transform>
+<emitter type="area"><spectrum name="radiance" value="5"/></emitter></shape>""",
+    "objects.xml": """<shape type="cube"><transform name="to_world"><matrix value="0.5 0 0 0 0 0.5 0 0 0 0 0.5 0 0 0 0 1"/></transform>
+<bsdf type="roughconductor"><string name="material" value="Au"/><float name="alpha" value="0.2"/><string name="distribution" value="ggx"/></bsdf></shape>
+<shape type="sphere"><point name="center" x="1" y="0" z="0"/><float name="radius" value="0.25"/><bsdf type="roughplastic"><float name="alpha" value="0.1"/><string name="int_ior" value="bk7"/></bsdf></shape>
+<shape type="disk"><boolean name="flip_normals" value="true"/><bsdf type="conductor"><rgb name="eta" value="0.2 0.9 1.1"/><rgb name="k" value="3.9 2.4 2.1"/></bsdf></shape>
+<shape type="sphere"><bsdf type="dielectric"><float name="int_ior" value="1.33"/></bsdf></shape>
+<shape type="cube"><bsdf type="plastic"/></shape>
+<emitter type="point"><point name="position" value="0 2 0"/><rgb name="intensity" value="10"/></emitter>
+<emitter type="spot"><transform name="to_world"><lookat origin="0 3 0" target="0 0 0" up="0 0 1"/></transform><float name="cutoff_angle" value="25"/></emitter>
+<emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>""",
+    "errors.xml": """<bsdf type="twosided" id="a"><ref id="b"/></bsdf><bsdf type="twosided" id="b"><ref id="a"/></bsdf>
+<shape type="obj"><string name="filename" value="missing.obj"/><ref id="a"/></shape><emitter type="constant"/>""",
+}
+
+
+def mitsuba_seeds():
+    for name, body in MITSUBA_SEEDS.items():
+        write("fuzz_mitsuba_xml", name, '<scene version="3.0.0">\n' + MITSUBA_CAMERA + body + "\n</scene>\n")
+    write("fuzz_mitsuba_xml", "include_devzero.xml", '<scene version="3.0.0"><include filename="/dev/zero"/></scene>\n')
+    words = ["<scene", "</scene>", 'version="3.0.0"', "<default", "<include", "<ref", "<shape", "<bsdf", "<emitter", "<sensor",
+             "<film", "<sampler", "<rfilter", "<integrator", "<texture", "<transform", "<translate", "<rotate", "<scale",
+             "<matrix", "<lookat", "<float", "<integer", "<boolean", "<string", "<rgb", "<spectrum", "<point", "<vector",
+             "/>", "</shape>", "</bsdf>", "type=", "name=", "value=", "id=", "angle=", "origin=", "target=", "up=", "x=",
+             "filename=", "$"]
+    lines = ["# Mitsuba 3 XML tokens (written by make_seeds.py)."] + ['"%s"' % w.replace('"', '\\"') for w in words]
+    (ROOT / "tests/fuzz/mitsuba_xml.dict").write_text("\n".join(lines) + "\n")
+
+
 # --------------------------------------------------------------------------------------- TaskResult
 
 # The fixed tasks of fuzz_task_result.cc: job "job-000001"; task 1 = GRADIENT views {0,1} on shard 0;
@@ -500,6 +542,7 @@ def main():
     job_seeds(args.invr)
     job_dictionary()
     task_result_seeds()
+    mitsuba_seeds()
     for d in sorted(CORPUS.iterdir()):
         files = list(d.iterdir())
         print("%-18s %2d seeds, %6d bytes, largest %5d" % (d.name, len(files), sum(f.stat().st_size for f in files),

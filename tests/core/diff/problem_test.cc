@@ -241,5 +241,48 @@ TEST(Problem, TargetMasksExcludePixelsFromLossAndGradient) {
   fs::remove_all(dir);
 }
 
+// Photographs as targets: 8-bit PNGs hold sRGB-encoded values and are decoded to linear; EXRs
+// are linear as they are; a wrong size names the size expected.
+TEST(Problem, EightBitTargetsAreDecodedFromSrgb) {
+  namespace fs = std::filesystem;
+  fs::path dir = fs::temp_directory_path() / ("invr_photo_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  v1::JobSpec job;
+  *job.mutable_scene() = zooScene("cornell");
+  job.mutable_scene()->mutable_film()->set_width(8);
+  job.mutable_scene()->mutable_film()->set_height(8);
+  auto* o = job.mutable_optimization();
+  o->set_method(v1::METHOD_PT);
+  o->add_parameters()->set_name("materials/red/albedo");
+  Image linear(8, 8, 3);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x) linear.setRgb(x, y, Rgb(0.05f, 0.2f, 0.6f));
+  writeImage(dir / "photo.png", linear);  // sRGB-encoded, 8 bits
+  writeImage(dir / "linear.exr", linear);
+  AssetResolver assets;
+  assets.baseDir = dir;
+  for (const char* file : {"photo.png", "linear.exr"}) {
+    v1::JobSpec j = job;
+    j.mutable_optimization()->add_targets()->set_path(file);
+    Problem p = buildProblem(j, assets, SceneUse::Validate);
+    Rgb c = p.givenTargets.at(0).rgb(3, 3);
+    // Half an 8-bit step of sRGB around each value, in linear terms: at most 0.003 here.
+    EXPECT_NEAR(c.x, 0.05f, 0.003f) << file;
+    EXPECT_NEAR(c.y, 0.2f, 0.003f) << file;
+    EXPECT_NEAR(c.z, 0.6f, 0.003f) << file;
+  }
+  Image wrong(16, 8, 3);
+  writeImage(dir / "wrong.png", wrong);
+  v1::JobSpec j = job;
+  j.mutable_optimization()->add_targets()->set_path("wrong.png");
+  try {
+    buildProblem(j, assets, SceneUse::Validate);
+    ADD_FAILURE() << "a target of the wrong size was accepted";
+  } catch (const InputError& e) {
+    EXPECT_MENTIONS(std::string(e.what()), "optimization.targets[0]: is 16x8, the film is 8x8");
+  }
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace invr

@@ -242,6 +242,41 @@ TEST(Mesh, PlyBinaryBothEndiansWithAndWithoutAttributes) {
     }
 }
 
+// ASCII with normals and uvs (and quads, split in two); binary files cut short or holding NaN.
+TEST(Mesh, PlyAsciiWithAttributesAndBadBinaryData) {
+  TriangleMesh m = parseMesh("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                             "property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n"
+                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                             "0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n1 1 0 0 0 1 1 1\n0 1 0 0 0 1 0 1\n4 0 1 2 3\n",
+                             MeshFormat::Ply, "quad");
+  EXPECT_EQ(m.triangleCount(), 2u);
+  ASSERT_EQ(m.normals.size(), 4u);
+  ASSERT_EQ(m.uvs.size(), 4u);
+  EXPECT_EQ(m.uvs[2].x, 1.f);
+  EXPECT_EQ(m.uvs[3].y, 1.f);
+  const std::string head = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string body;
+  const float v[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  body.append(reinterpret_cast<const char*>(v), sizeof v);
+  body += char(3);
+  const int32_t idx[3] = {0, 1, 2};
+  body.append(reinterpret_cast<const char*>(idx), sizeof idx);
+  EXPECT_EQ(parseError(head + body, MeshFormat::Ply).message, "");
+  auto e = parseError(head + body.substr(0, body.size() - 5), MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "truncated")) << e.message;
+  std::string nan = body;
+  const float q = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&nan[4], &q, 4);
+  e = parseError(head + nan, MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "not finite")) << e.message;
+  std::string far = body;
+  const int32_t bad = 7;
+  std::memcpy(&far[far.size() - 4], &bad, 4);
+  e = parseError(head + far, MeshFormat::Ply);
+  EXPECT_TRUE(has(e, "vertex index is 7")) << e.message;
+}
+
 TEST(Mesh, PlyElementsMustFitTheFileTogether) {
   // Elements without properties would be read from no bytes at all, however many they declare.
   auto e = parseError("ply\nformat ascii 1.0\nelement foo 67108864\nend_header\n", MeshFormat::Ply);
