@@ -89,6 +89,23 @@ TEST(Robustness, MalformedFilesOversizedHeadersAndBadEnumsAreRefusedAndTheServer
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
   EXPECT_NE(st.error_message().find("count '-1'"), std::string::npos) << st.error_message();
 
+  // A Mitsuba scene reference: the client imports it; the server refuses to read a client's XML.
+  {
+    v1::JobSpec job = inlineCornell();
+    job.mutable_mitsuba()->set_path("scene.xml");
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
+    EXPECT_NE(st.error_message().find("imported into 'scene' by the client"), std::string::npos) << st.error_message();
+  }
+  // A mask entry left empty is fine; a mask naming an asset never uploaded is not found.
+  {
+    v1::JobSpec job = inlineCornell();
+    job.mutable_optimization()->add_target_masks()->set_sha256(std::string(64, 'a'));
+    st = submitWith(c, job);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << st.error_message();
+    EXPECT_NE(st.error_message().find("optimization.target_masks[0].sha256"), std::string::npos) << st.error_message();
+  }
+
   // A PNG texture declaring 30000x30000 pixels: refused from its header, nothing allocated.
   {
     v1::JobSpec job = inlineCornell();
