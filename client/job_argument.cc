@@ -84,7 +84,8 @@ void importMitsubaIntoJob(v1::JobSpec& job, const fs::path& baseDir, std::vector
   *job.mutable_scene() = imp.job.scene();  // replaces `mitsuba` in the oneof
 }
 
-v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs) {
+v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs, bool* imported) {
+  if (imported) *imported = false;
   auto defines = parseDefines(sceneArgs.defines);
   std::vector<std::string> warnings;
   v1::JobSpec job;
@@ -94,6 +95,7 @@ v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const
     assets.baseDir = p.has_parent_path() ? p.parent_path() : fs::path(".");
     job = loadJobFile(p);
     if (job.has_mitsuba()) {
+      if (imported) *imported = true;
       for (const auto& [k, v] : defines) (*job.mutable_mitsuba()->mutable_defaults())[k] = v;
       try {
         importMitsubaIntoJob(job, assets.baseDir, warnings);
@@ -109,6 +111,7 @@ v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const
     MitsubaImportOptions opt;
     opt.defaults = defines;
     MitsubaImport imp = importMitsubaScene(p, opt);
+    if (imported) *imported = true;
     warnings = imp.warnings;
     job = std::move(imp.job);
     assets.baseDir = p.has_parent_path() ? p.parent_path() : fs::path(".");
@@ -121,7 +124,8 @@ v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const
 }
 
 v1::JobSpec optimizationJobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs) {
-  v1::JobSpec job = jobFromArgument(arg, assets, sceneArgs);
+  bool imported = false;
+  v1::JobSpec job = jobFromArgument(arg, assets, sceneArgs, &imported);
   const bool xml = isMitsubaSceneFile(arg);
   if (sceneArgs.params.empty()) {
     if (job.has_optimization() && job.optimization().parameters_size() > 0) return job;
@@ -155,7 +159,7 @@ v1::JobSpec optimizationJobFromArgument(const std::string& arg, AssetResolver& a
   }
   // A scene file's own depth: the optimisation renders and differentiates what the file renders.
   const int depth = job.render().max_depth();
-  if (xml && o->max_depth() == 0 && depth > 1) {
+  if (imported && o->max_depth() == 0 && depth > 1) {
     o->set_max_depth(depth);
     if (o->method() == v1::METHOD_UNSPECIFIED) o->set_method(v1::METHOD_PT);
   }

@@ -26,7 +26,8 @@ void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams);
 
 // Loads the job an argument names (setting assets.baseDir). A Mitsuba scene, directly or through
 // a job file, becomes an inline scene; its import warnings go to stderr.
-invr::v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs = {});
+// `imported` (optional) says whether the scene came from a Mitsuba file.
+invr::v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs = {}, bool* imported = nullptr);
 
 // The job an optimisation command runs: jobFromArgument, then --param replaces the parameter list.
 // A scene without an optimisation block (a Mitsuba file, a job file without one) needs --param;

@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/bsdf/bsdf_sample.h"
 #include "core/bsdf/dielectric.h"
@@ -95,6 +96,7 @@ struct Material {
   float ior = 1.5f;
   Rgb reflectance{1.f};
   bool oneSided = false;  // black from the back, like Mitsuba's bsdfs outside `twosided`
+  std::vector<std::string> aliases;  // other names parameters may use (Mitsuba ids folded into this one)
 
   bool hasAlbedo() const { return kind == BsdfKind::Diffuse || kind == BsdfKind::RoughPlastic; }
   bool hasRoughness() const { return kind == BsdfKind::RoughConductor || kind == BsdfKind::RoughPlastic; }

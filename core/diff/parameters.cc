@@ -20,6 +20,9 @@ std::vector<std::string> split(const std::string& s) {
 int materialIndex(const Scene& scene, const std::string& name) {
   for (size_t i = 0; i < scene.materials.size(); ++i)
     if (scene.materials[i].name == name) return int(i);
+  for (size_t i = 0; i < scene.materials.size(); ++i)
+    for (const auto& a : scene.materials[i].aliases)
+      if (a == name) return int(i);
   return -1;
 }
 
@@ -64,8 +67,9 @@ std::string invrParameterName(const Scene& scene, const std::string& name) {
       material = scene.materials[size_t(scene.meshMaterial[size_t(shapeIndex(owner[0]))])].name;
       k = 2;
     } else {
-      if (materialIndex(scene, owner[0]) < 0) return fail("no material (bsdf) with id '" + owner[0] + "'");
-      material = owner[0];
+      int mi = materialIndex(scene, owner[0]);
+      if (mi < 0) return fail("no material (bsdf) with id '" + owner[0] + "'");
+      material = scene.materials[size_t(mi)].name;
     }
     if (k < owner.size() && owner[k] == "brdf_0") ++k;
     if (k != owner.size()) return fail("no bsdf property at '" + name + "'");

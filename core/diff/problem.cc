@@ -199,7 +199,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
              ", the film is " + std::to_string(p.scene->width) + "x" + std::to_string(p.scene->height));
       std::vector<float> w(size_t(im.width()) * size_t(im.height()));
       double sum = 0;
-      const int c = std::min(im.channels(), 3);  // alpha is not part of the weight
+      const int c = im.channels() == 2 ? 1 : std::min(im.channels(), 3);  // grey+alpha or RGBA: alpha is not part of the weight
       for (int y = 0; y < im.height(); ++y)
         for (int x = 0; x < im.width(); ++x) {
           double m = 0;

@@ -176,15 +176,19 @@ class Importer {
   std::map<std::string, pugi::xml_node> ids_;
   std::set<std::string> resolving_;               // ids being resolved (cycle detection)
   std::map<std::string, std::string> bsdfMaterial_;  // bsdf id -> material name
+  std::set<std::string> wrapped_;                    // bsdf ids used inside a twosided
+  std::set<std::string> usedTextures_;               // texture ids looked up
   std::vector<fs::path> includeStack_;
   std::set<std::string> materialNames_, shapeNames_, lightNames_;
-  int sensors_ = 0, integrators_ = 0, anonymous_ = 0;
-  bool sawFilm_ = false;
+  int sensors_ = 0, integrators_ = 0, anonymous_ = 0, includes_ = 0;
+  uintmax_t includedBytes_ = 0;
 
   // ------------------------------------------------------------------ locations and errors
   const Source& sourceOf(pugi::xml_node n) const {
-    auto it = sources_.find(n.root().internal_object());
-    return *it->second;
+    auto it = n ? sources_.find(n.root().internal_object()) : sources_.end();
+    if (it != sources_.end()) return *it->second;
+    static const Source unknown{"<scene>", {}, {}, {0}};  // a null node: no line to name (a bug if ever seen)
+    return unknown;
   }
   std::string where(pugi::xml_node n) const {
     const Source& s = sourceOf(n);
@@ -248,14 +252,20 @@ class Importer {
           r += v[i++];
           continue;
         }
-        size_t j = i + 1;
-        while (j < v.size() && (std::isalnum(static_cast<unsigned char>(v[j])) || v[j] == '_')) ++j;
-        std::string key = v.substr(i + 1, j - i - 1);
-        if (key.empty()) fail(n, "'$' in attribute " + std::string(a.name()) + " is not followed by a parameter name");
-        auto it = defaults_.find(key);
-        if (it == defaults_.end()) fail(n, "attribute " + std::string(a.name()) + " uses $" + key + ", which no <default> defines");
-        r += it->second;
-        i = j;
+        // Like Mitsuba: the longest defined name that follows the '$' ($name_diffuse with only
+        // 'name' defined is $name followed by "_diffuse").
+        const std::string* best = nullptr;
+        for (const auto& [k, val] : defaults_)
+          if (v.compare(i + 1, k.size(), k) == 0 && (!best || k.size() > best->size())) best = &k;
+        if (!best) {
+          size_t j = i + 1;
+          while (j < v.size() && (std::isalnum(static_cast<unsigned char>(v[j])) || v[j] == '_')) ++j;
+          std::string key = v.substr(i + 1, j - i - 1);
+          if (key.empty()) fail(n, "'$' in attribute " + std::string(a.name()) + " is not followed by a parameter name");
+          fail(n, "attribute " + std::string(a.name()) + " uses $" + key + ", which no <default> defines");
+        }
+        r += defaults_.at(*best);
+        i += 1 + best->size();
       }
       a.set_value(r.c_str());
     }
@@ -297,12 +307,15 @@ class Importer {
     for (const auto& q : includeStack_)
       if (fs::weakly_canonical(q) == fs::weakly_canonical(p)) fail(n, "includes '" + file + "' recursively");
     if (includeStack_.size() > 16) fail(n, "includes nested more than 16 deep");
+    if (++includes_ > 256) fail(n, "more than 256 included files");
     std::string text;
     try {
       text = readSceneFile(p, "included file");
     } catch (const InputError& e) {
       rethrowWithMessage(e, where(n) + ": " + e.what());
     }
+    includedBytes_ += text.size();
+    if (includedBytes_ > kMaxSceneFileBytes) fail(n, "included files exceed " + humanBytes(kMaxSceneFileBytes) + " together");
     includeStack_.push_back(p);
     pugi::xml_node scene = load(text, p.parent_path(), p.string(), false);
     collectTopLevel(scene);
@@ -329,10 +342,18 @@ class Importer {
   Props props(pugi::xml_node n) {
     Props p;
     p.node = n;
+    static const std::set<std::string> objects = {"bsdf", "emitter", "shape", "sensor", "film", "sampler", "rfilter", "integrator"};
     for (auto c : n.children()) {
       if (c.type() != pugi::node_element) continue;
-      std::string nm = c.attribute("name").value();
-      if (nm.empty()) {
+      std::string nm = c.attribute("name").value(), tag = c.name();
+      // Nested objects (and references to them) count by their kind, named or not
+      // (<ref name="bsdf" id="m"/>); textures stay properties of their name.
+      bool object = objects.count(tag) > 0;
+      if (tag == "ref") {
+        auto it = ids_.find(c.attribute("id").value());
+        object = it != ids_.end() && objects.count(it->second.name()) > 0;
+      }
+      if (nm.empty() || object) {
         p.unnamed.push_back(c);
         continue;
       }
@@ -473,7 +494,10 @@ class Importer {
       return;
     }
     std::string tag = n.name();
-    if (tag == "ref") n = resolveRef(n, "texture");
+    if (tag == "ref") {
+      n = resolveRef(n, "texture");
+      usedTextures_.insert(n.attribute("id").value());
+    }
     if (std::string(n.name()) == "texture") {
       bitmap(n, out, colour);
       return;
@@ -488,10 +512,9 @@ class Importer {
     std::string file = stringProp(p, "filename", "");
     if (file.empty()) fail(n, "a bitmap needs a filename");
     out->mutable_image()->set_path(assetPath(n, file));
-    bool raw = boolProp(p, "raw", false);
-    // invr decodes sRGB from 8-bit colour images and reads scalar ones (roughness) as data, as
-    // Mitsuba does by default; the other way round cannot be expressed.
-    if (raw && colour) fail(p.named["raw"], "raw=true on a colour texture is not supported (invr decodes 8-bit colour images from sRGB)");
+    // Mitsuba decodes every 8-bit image from sRGB unless raw=true, scalar (roughness) ones too.
+    (void)colour;
+    out->set_srgb(!boolProp(p, "raw", false));
     std::string filter = stringProp(p, "filter_type", "bilinear");
     if (filter != "bilinear") fail(p.named["filter_type"], "filter_type '" + filter + "': invr looks textures up bilinearly");
     std::string wrap = stringProp(p, "wrap_mode", "repeat");
@@ -575,10 +598,16 @@ class Importer {
           return D3{v[0], v[1], v[2]};
         };
         if (!c.attribute("origin") || !c.attribute("target")) fail(c, "lookat needs origin and target");
-        D3 o = vec3("origin", {0, 0, 0}), tg = vec3("target", {0, 0, 1}), up = vec3("up", {0, 1, 0});
+        D3 o = vec3("origin", {0, 0, 0}), tg = vec3("target", {0, 0, 1}), up = vec3("up", {0, 0, 0});
         D3 dir = sub(tg, o);
         if (!(lenD(dir) > 0)) fail(c, "lookat: target equals origin");
         dir = scaleD(dir, 1.0 / lenD(dir));
+        if (!(lenD(up) > 0)) {
+          // No up given: Mitsuba's choice, the first tangent of its orthonormal frame around the
+          // view direction (Duff et al. 2017).
+          const double sign = std::copysign(1.0, dir[2]), a = -1.0 / (sign + dir[2]), b = dir[0] * dir[1] * a;
+          up = {1 + sign * dir[0] * dir[0] * a, sign * b, -sign * dir[0]};
+        }
         D3 left = crossD(up, dir);
         if (!(lenD(left) > 1e-9)) fail(c, "lookat: up is parallel to the view direction");
         left = scaleD(left, 1.0 / lenD(left));
@@ -611,9 +640,11 @@ class Importer {
 
   // ------------------------------------------------------------------ names
   std::string uniqueName(std::set<std::string>& used, const std::string& want, const std::string& prefix) {
+    // Generated names never take a name an object's id will claim.
     std::string base = want.empty() ? prefix + "_" + std::to_string(++anonymous_) : want;
+    while (want.empty() && ids_.count(base)) base = prefix + "_" + std::to_string(++anonymous_);
     std::string n = base;
-    for (int k = 2; used.count(n); ++k) n = base + "_" + std::to_string(k);
+    for (int k = 2; used.count(n) || (n != want && ids_.count(n)); ++k) n = base + "_" + std::to_string(k);
     used.insert(n);
     return n;
   }
@@ -622,11 +653,11 @@ class Importer {
   void topLevelObject(pugi::xml_node n) {
     std::string tag = n.name();
     if (tag == "bsdf") {
-      if (n.attribute("id")) material(n);  // referenced (or not) later; its name is its id
-      else fail(n, "a top-level <bsdf> needs an id (shapes refer to it with <ref id=...>)");
+      // Made a material where a shape uses it (finish() checks and reports the unused ones).
+      if (!n.attribute("id")) fail(n, "a top-level <bsdf> needs an id (shapes refer to it with <ref id=...>)");
     } else if (tag == "texture") {
       if (!n.attribute("id")) fail(n, "a top-level <texture> needs an id");
-      // Checked where it is used (as a reflectance or a roughness).
+      // Checked where it is used (as a reflectance or a roughness), and in finish() if unused.
       if (std::string(n.attribute("type").value()) != "bitmap") fail(n, "texture type '" + std::string(n.attribute("type").value()) + "' is not supported (only bitmap)");
     } else if (tag == "shape") {
       shape(n);
@@ -732,7 +763,12 @@ class Importer {
         resolving_.insert(id);
       }
       bsdfInto(inner[0], m);
-      if (!id.empty()) resolving_.erase(id);
+      if (!id.empty()) {
+        resolving_.erase(id);
+        // Mitsuba names a referenced bsdf's parameters by its own id: they are this material's.
+        m->add_aliases(id);
+        wrapped_.insert(id);
+      }
       m->set_one_sided(false);
       return;
     }
@@ -902,10 +938,9 @@ class Importer {
       v1::Light l;
       l.set_name(uniqueName(lightNames_, c.attribute("id").value()[0] ? c.attribute("id").value() : s.name(), "light"));
       l.mutable_area()->set_shape(s.name());
-      pugi::xml_node rad = ep.get("radiance");
-      if (!rad) fail(c, "an area emitter needs a radiance");
-      if (std::string(rad.name()) == "texture" || std::string(rad.name()) == "ref") fail(rad, "textured emission is not supported");
-      *l.mutable_area()->mutable_radiance() = toRgb(emission(rad, "'radiance'"));
+      pugi::xml_node rad = ep.get("radiance");  // Mitsuba's default: 1
+      if (rad && (std::string(rad.name()) == "texture" || std::string(rad.name()) == "ref")) fail(rad, "textured emission is not supported");
+      *l.mutable_area()->mutable_radiance() = toRgb(rad ? emission(rad, "'radiance'") : D3{1, 1, 1});
       finishProps(ep);
       for (auto x : ep.unnamed) fail(x, "unexpected element inside an area emitter");
       *out_.job.mutable_scene()->add_lights() = l;
@@ -1031,13 +1066,13 @@ class Importer {
         fail(c, "unexpected element inside a sensor");
       }
     }
+    if (!haveFilm) warn(n, "no <film>: Mitsuba's default 768x576 hdrfilm, whose gaussian reconstruction filter is replaced by invr's box filter");
     auto* sc = out_.job.mutable_scene();
     if (sensors_ > 0 && (sc->film().width() != width || sc->film().height() != height))
       fail(n, "every sensor of a scene must share one film size in invr (" + std::to_string(sc->film().width()) + "x" +
                   std::to_string(sc->film().height()) + " before)");
     sc->mutable_film()->set_width(width);
     sc->mutable_film()->set_height(height);
-    sawFilm_ = sawFilm_ || haveFilm;
     if (haveSampler || sensors_ == 0) out_.job.mutable_render()->set_spp(spp);
 
     // Field of view, converted to invr's vertical one.
@@ -1072,6 +1107,13 @@ class Importer {
     // Mitsuba's camera looks along local +z with +y up and +x to the image's left.
     D3 eye = xf.point({0, 0, 0}), fwd = xf.vector({0, 0, 1}), up = xf.vector({0, 1, 0}), left = xf.vector({1, 0, 0});
     if (!(lenD(fwd) > 0 && lenD(up) > 0)) fail(n, "to_world collapses the camera frame");
+    {
+      const double eps = 1e-5;
+      bool rigid = std::abs(lenD(fwd) - 1) < eps && std::abs(lenD(up) - 1) < eps && std::abs(lenD(left) - 1) < eps &&
+                   std::abs(dotD(fwd, up)) < eps && std::abs(dotD(fwd, left)) < eps && std::abs(dotD(up, left)) < eps;
+      if (!rigid && dotD(crossD(up, fwd), left) >= 0)
+        fail(p.named["to_world"], "a camera's to_world must be a rotation and translation (Mitsuba refuses scales and shears there too)");
+    }
     if (dotD(crossD(up, fwd), left) < 0)
       fail(p.named["to_world"], "the camera's to_world mirrors the image (a negative scale); invr's camera cannot");
     fwd = scaleD(fwd, 1.0 / lenD(fwd));
@@ -1102,6 +1144,7 @@ class Importer {
       if (md == 1) fail(p.named["max_depth"], "max_depth 1 shows only emitters seen directly; invr renders at least direct illumination (max_depth 2)");
       // Mitsuba counts the camera segment; invr counts the vertices after the camera.
       depth = md == -1 ? kUnlimitedDepth : std::min(md - 1, kUnlimitedDepth);
+      if (md - 1 > kUnlimitedDepth) warn(p.named["max_depth"], "max_depth " + std::to_string(md) + " is cut to invr's longest paths (" + std::to_string(kUnlimitedDepth) + " vertices)");
       if (md == -1) warn(p.named.count("max_depth") ? p.named["max_depth"] : n, "unlimited depth becomes invr's longest paths (" + std::to_string(kUnlimitedDepth) + " vertices, with Russian roulette)");
       int rr = intProp(p, "rr_depth", 5);
       if (rr < 1) fail(p.named["rr_depth"], "rr_depth must be >= 1");
@@ -1131,15 +1174,22 @@ class Importer {
                               std::to_string(kUnlimitedDepth) + " vertices)");
     }
     if (out_.job.scene().lights_size() == 0) fail(scene, "the scene has no emitter: it would render black");
-    for (const auto& [id, node] : ids_)
-      if (std::string(node.name()) == "bsdf" && !usedBsdf(id)) warn(node, "bsdf \"" + id + "\" is not used by any shape");
-  }
-  bool usedBsdf(const std::string& id) const {
-    auto it = bsdfMaterial_.find(id);
-    if (it == bsdfMaterial_.end()) return false;
-    for (const auto& s : out_.job.scene().shapes())
-      if (s.material() == it->second) return true;
-    return false;
+    // Objects no shape uses cannot change the image, but are still checked: a mistake in them is
+    // reported as Mitsuba would report it.
+    for (auto n : topLevel_) {
+      std::string tag = n.name(), id = n.attribute("id").value();
+      if (tag == "bsdf" && !bsdfMaterial_.count(id) && !wrapped_.count(id)) {
+        v1::Material scratch;
+        resolving_.insert(id);
+        bsdfInto(n, &scratch);
+        resolving_.erase(id);
+        warn(n, "bsdf \"" + id + "\" is not used by any shape");
+      } else if (tag == "texture" && !usedTextures_.count(id)) {
+        v1::Texture scratch;
+        bitmap(n, &scratch, true);
+        warn(n, "texture \"" + id + "\" is not used");
+      }
+    }
   }
 };
 

@@ -95,7 +95,7 @@ std::shared_ptr<Image> loadTextureImage(const v1::Texture& t, const AssetResolve
   }
   auto path = assets.resolve(t.image(), field + ".image");
   try {
-    auto img = std::make_shared<Image>(readImage(path, colour, assets.budget));
+    auto img = std::make_shared<Image>(readImage(path, t.has_srgb() ? t.srgb() : colour, assets.budget));
     for (float v : img->data())
       if (!std::isfinite(v)) fail(field + ".image", "'" + path.string() + "' contains non-finite texels");
     return img;
@@ -134,6 +134,7 @@ Material material(const v1::Material& m, const AssetResolver& assets, const std:
   Material out;
   out.name = m.name();
   out.oneSided = m.one_sided();
+  out.aliases.assign(m.aliases().begin(), m.aliases().end());
   switch (m.kind_case()) {
     case v1::Material::kDiffuse:
       out.kind = BsdfKind::Diffuse;

@@ -33,6 +33,11 @@ grep -q '"red.reflectance.value"' "$WORK/opt/parameters.json" || fail "parameter
 out=$("$BIN" optimize "$BOX" -D res=16 --param red.sparkle.value --steps 1 -o "$WORK/opt2" 2>&1) && fail "unknown property accepted"
 echo "$out" | grep -q "property 'sparkle' has no invr parameter" || fail "unknown property message: $out"
 
+printf '{"mitsuba": {"path": "%s"}}\n' "$BOX" > "$WORK/names_the_scene.json"
+"$BIN" optimize "$WORK/names_the_scene.json" -D res=16 -D max_depth=3 --param red.reflectance.value --steps 1 -o "$WORK/opt3" > "$WORK/opt3.log" 2>&1 ||
+  { cat "$WORK/opt3.log"; fail "a job file naming the scene, with --param"; }
+grep -q "method pt" "$WORK/opt3.log" || fail "the scene's depth makes the method pt"
+
 echo "-- plan and the embedded service take XML scenes and jobs that name them"
 "$BIN" plan "$BOX" -D res=16 --param red.reflectance.value | grep -qi "materials\|red.reflectance.value" || fail "plan"
 "$BIN" run "$ROOT/docs/examples/mitsuba/cornell-optimize.json" -D res=16 --steps 2 --target-spp 4 -o "$WORK/run" > "$WORK/run.log" 2>&1 ||

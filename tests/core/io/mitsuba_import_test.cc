@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/image/image.h"
+#include "core/diff/parameters.h"
 #include "core/io/job_io.h"
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"
@@ -367,6 +368,58 @@ TEST(MitsubaImport, IgnoredHarmlessPropertiesAreWarnedAbout) {
   EXPECT_MENTIONS(all, "pixel_format");
   EXPECT_MENTIONS(all, "gaussian");
   EXPECT_MENTIONS(all, "box filter");
+}
+
+TEST(MitsubaImport, LookatWithoutUpTakesMitsubasFrame) {
+  // Looking down -z, Mitsuba's orthonormal frame (Duff et al.) puts up along +x.
+  v1::Camera c = cameraOf(R"(<float name="fov" value="45"/><transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0"/></transform>)", 8, 8);
+  EXPECT_DOUBLE_EQ(c.up().x(), 1);
+  EXPECT_DOUBLE_EQ(c.up().y(), 0);
+  EXPECT_DOUBLE_EQ(c.up().z(), 0);
+  EXPECT_MENTIONS(errorOf(R"(<scene version="3.0.0"><emitter type="constant"/><sensor type="perspective"><float name="fov" value="45"/>
+      <transform name="to_world"><scale value="2"/><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform></sensor></scene>)"),
+                  "must be a rotation and translation");
+}
+
+TEST(MitsubaImport, NamesSubstitutionsAndDefaultsFollowMitsuba) {
+  const std::string camera = R"(<sensor type="perspective"><float name="fov" value="45"/><film type="hdrfilm"><rfilter type="box"/></film></sensor>)";
+  Image tex(2, 2, 3);
+  writeImage(tmpDir() / "wood_diffuse.exr", tex);
+  MitsubaImport imp = importText(R"(<scene version="3.0.0"><default name="name" value="wood"/>)" + camera + R"(
+      <bsdf type="diffuse" id="inner"><texture type="bitmap" name="reflectance"><string name="filename" value="$name_diffuse.exr"/>
+        <boolean name="raw" value="true"/></texture></bsdf>
+      <bsdf type="twosided" id="outer"><ref name="bsdf" id="inner"/></bsdf>
+      <bsdf type="diffuse" id="bsdf_1"/>
+      <bsdf type="diffuse" id="spare"/>
+      <shape type="rectangle"><ref name="bsdf" id="outer"/></shape>
+      <shape type="cube"><bsdf type="diffuse"/></shape>
+      <shape type="cube" id="cube_2"><ref id="bsdf_1"/></shape>
+      <shape type="rectangle" id="lamp"><emitter type="area"/></shape></scene>)");
+  const auto& sc = imp.job.scene();
+  ASSERT_EQ(sc.materials_size(), 4);
+  EXPECT_EQ(sc.materials(0).name(), "outer");
+  EXPECT_EQ(sc.materials(0).diffuse().albedo().image().path(), "wood_diffuse.exr");  // $name then "_diffuse"
+  EXPECT_FALSE(sc.materials(0).diffuse().albedo().srgb());                          // raw=true
+  ASSERT_EQ(sc.materials(0).aliases_size(), 1);
+  EXPECT_EQ(sc.materials(0).aliases(0), "inner");
+  // Generated names step over ids: "cube_2" and "bsdf_1" are ids here.
+  EXPECT_EQ(sc.shapes(0).name(), "rectangle_1");
+  EXPECT_EQ(sc.shapes(1).name(), "cube_3");
+  EXPECT_EQ(sc.materials(1).name(), "bsdf_4");
+  EXPECT_EQ(sc.materials(2).name(), "bsdf_1");
+  EXPECT_DOUBLE_EQ(sc.lights(0).area().radiance().r(), 1.0);  // Mitsuba's default radiance
+  std::string all;
+  for (const auto& w : imp.warnings) all += w + "\n";
+  EXPECT_MENTIONS(all, "bsdf \"spare\" is not used");
+  EXPECT_EQ(all.find("\"inner\" is not used"), std::string::npos) << all;
+  // The wrapped bsdf's Mitsuba name reaches the material that renders it.
+  AssetResolver assets;
+  assets.baseDir = tmpDir();
+  auto scene = buildJobScene(imp.job, assets, SceneUse::Validate);
+  EXPECT_EQ(invrParameterName(*scene, "inner.reflectance.data"), "materials/outer/albedo");
+  // An unused bsdf is still checked.
+  EXPECT_MENTIONS(errorOf(R"(<scene version="3.0.0"><emitter type="constant"/>)" + camera + R"(<bsdf type="velvet" id="unused"/></scene>)"),
+                  "bsdf type 'velvet' is not supported");
 }
 
 }  // namespace
