@@ -9,11 +9,11 @@ namespace invr {
 
 namespace {
 
-std::vector<std::string> split(const std::string& s) {
+std::vector<std::string> split(const std::string& s, char sep = '/') {
   std::vector<std::string> parts;
   std::stringstream ss(s);
   std::string part;
-  while (std::getline(ss, part, '/')) parts.push_back(part);
+  while (std::getline(ss, part, sep)) parts.push_back(part);
   return parts;
 }
 
@@ -32,21 +32,13 @@ int lightIndex(const Scene& scene, const std::string& name) {
   return -1;
 }
 
-std::vector<std::string> splitDots(const std::string& s) {
-  std::vector<std::string> parts;
-  std::stringstream ss(s);
-  std::string part;
-  while (std::getline(ss, part, '.')) parts.push_back(part);
-  return parts;
-}
-
 }  // namespace
 
 std::string invrParameterName(const Scene& scene, const std::string& name) {
   if (name.find('/') != std::string::npos || name.find('.') == std::string::npos) return name;
   // A Mitsuba 3 key (mi.traverse): <object path>.<property>[.value|.data].
   auto fail = [&](const std::string& why) -> std::string { throw InputError("parameter '" + name + "' (a Mitsuba name): " + why); };
-  auto parts = splitDots(name);
+  auto parts = split(name, '.');
   for (const auto& p : parts)
     if (p.empty()) return fail("empty component");
   if (parts.back() == "value" || parts.back() == "data") parts.pop_back();

@@ -12,6 +12,25 @@ namespace invr {
 
 namespace v1 = invr::v1;
 
+namespace {
+
+// An image the job gives per view (a target, a mask), read and checked against the film's size.
+Image readViewImage(const v1::AssetRef& ref, const std::string& field, bool srgb, const AssetResolver& assets, const Scene& scene) {
+  Image im;
+  try {
+    im = readImage(assets.resolve(ref, field), srgb, assets.budget);
+  } catch (const InputError& e) {
+    if (std::string(e.what()).rfind(field, 0) == 0) throw;
+    rethrowWithMessage(e, field + ": " + e.what());
+  }
+  if (im.width() != scene.width || im.height() != scene.height)
+    throw InputError(field + ": is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) + ", the film is " +
+                     std::to_string(scene.width) + "x" + std::to_string(scene.height));
+  return im;
+}
+
+}  // namespace
+
 Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneUse use) {
   const auto& o = job.optimization();
   auto fail = [](const std::string& field, const std::string& why) { throw InputError("optimization." + field + ": " + why); };
@@ -155,17 +174,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     if (o.targets_size() != views)
       fail("targets", "needs one image per view: the scene has " + std::to_string(views) + ", the job gives " + std::to_string(o.targets_size()));
     for (int v = 0; v < views; ++v) {
-      std::string field = "optimization.targets[" + std::to_string(v) + "]";
-      Image im;
-      try {
-        im = readImage(assets.resolve(o.targets(v), field), true, assets.budget);
-      } catch (const InputError& e) {
-        if (std::string(e.what()).rfind(field, 0) == 0) throw;
-        rethrowWithMessage(e, field + ": " + e.what());
-      }
-      if (im.width() != p.scene->width || im.height() != p.scene->height)
-        fail("targets[" + std::to_string(v) + "]", "is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) +
-             ", the film is " + std::to_string(p.scene->width) + "x" + std::to_string(p.scene->height));
+      Image im = readViewImage(o.targets(v), "optimization.targets[" + std::to_string(v) + "]", true, assets, *p.scene);
       if (im.channels() != 3) {  // grey or RGBA: the loss compares RGB
         Image rgb(im.width(), im.height(), 3);
         for (int y = 0; y < im.height(); ++y)
@@ -186,17 +195,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     for (int v = 0; v < views; ++v) {
       const auto& ref = o.target_masks(v);
       if (ref.source_case() == v1::AssetRef::SOURCE_NOT_SET) continue;
-      std::string field = "optimization.target_masks[" + std::to_string(v) + "]";
-      Image im;
-      try {
-        im = readImage(assets.resolve(ref, field), false, assets.budget);
-      } catch (const InputError& e) {
-        if (std::string(e.what()).rfind(field, 0) == 0) throw;
-        rethrowWithMessage(e, field + ": " + e.what());
-      }
-      if (im.width() != p.scene->width || im.height() != p.scene->height)
-        fail("target_masks[" + std::to_string(v) + "]", "is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) +
-             ", the film is " + std::to_string(p.scene->width) + "x" + std::to_string(p.scene->height));
+      Image im = readViewImage(ref, "optimization.target_masks[" + std::to_string(v) + "]", false, assets, *p.scene);
       std::vector<float> w(size_t(im.width()) * size_t(im.height()));
       double sum = 0;
       const int c = im.channels() == 2 ? 1 : std::min(im.channels(), 3);  // grey+alpha or RGBA: alpha is not part of the weight

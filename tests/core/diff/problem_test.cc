@@ -163,22 +163,26 @@ TEST(Problem, MitsubaNamesNameTheSameParameters) {
                   "the same value as parameter 'materials/red/albedo'");
 }
 
+// The zoo's Cornell box on a small square film, recovering the red wall with PT.
+v1::JobSpec smallCornellJob(int side) {
+  v1::JobSpec job;
+  *job.mutable_scene() = zooScene("cornell");
+  job.mutable_scene()->mutable_film()->set_width(side);
+  job.mutable_scene()->mutable_film()->set_height(side);
+  job.mutable_optimization()->set_method(v1::METHOD_PT);
+  job.mutable_optimization()->add_parameters()->set_name("materials/red/albedo");
+  return job;
+}
+
 // Masked-out pixels take no part in the loss or its gradient: junk there changes nothing, while
 // without the mask it changes both.
 TEST(Problem, TargetMasksExcludePixelsFromLossAndGradient) {
   namespace fs = std::filesystem;
   fs::path dir = fs::temp_directory_path() / ("invr_mask_test_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  v1::JobSpec job;
-  *job.mutable_scene() = zooScene("cornell");
-  job.mutable_scene()->mutable_film()->set_width(32);
-  job.mutable_scene()->mutable_film()->set_height(32);
-  auto* o = job.mutable_optimization();
-  o->set_method(v1::METHOD_PT);
-  o->set_target_spp(8);
-  auto* ps = o->add_parameters();
-  ps->set_name("materials/red/albedo");
-  ps->set_initial(0.3);
+  v1::JobSpec job = smallCornellJob(32);
+  job.mutable_optimization()->set_target_spp(8);
+  job.mutable_optimization()->mutable_parameters(0)->set_initial(0.3);
   {
     Problem truth = buildProblem(job);
     Image t = renderTarget(truth, 0), junk = t, mask(32, 32, 3), ones(32, 32, 3);
@@ -247,13 +251,7 @@ TEST(Problem, EightBitTargetsAreDecodedFromSrgb) {
   namespace fs = std::filesystem;
   fs::path dir = fs::temp_directory_path() / ("invr_photo_test_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  v1::JobSpec job;
-  *job.mutable_scene() = zooScene("cornell");
-  job.mutable_scene()->mutable_film()->set_width(8);
-  job.mutable_scene()->mutable_film()->set_height(8);
-  auto* o = job.mutable_optimization();
-  o->set_method(v1::METHOD_PT);
-  o->add_parameters()->set_name("materials/red/albedo");
+  v1::JobSpec job = smallCornellJob(8);
   Image linear(8, 8, 3);
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x) linear.setRgb(x, y, Rgb(0.05f, 0.2f, 0.6f));
