@@ -267,8 +267,8 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
       if (what.rfind(field, 0) == 0) throw;
       rethrowWithMessage(e, field + ": " + what);
     }
-    if (s.face_normals()) mesh.normals.clear();
     if (s.face_normals() && s.smooth_normals()) fail(field, "face_normals and smooth_normals exclude each other");
+    if (s.face_normals()) mesh.normals.clear();
     if (s.flip_tex_coords())
       for (auto& uv : mesh.uvs) uv.y = 1.f - uv.y;
     mesh.transform(xf);
@@ -378,7 +378,7 @@ std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver
     case v1::JobSpec::kMitsuba:
       throw InputError("mitsuba: a Mitsuba scene is imported into 'scene' by the client (invr render, optimize, run, submit and plan do it); "
                        "import it first (invr import) to use the job elsewhere");
-    default: throw InputError("job: set either 'zoo' (a built-in scene name) or 'scene'");
+    default: throw InputError("job: set 'zoo' (a built-in scene name), 'scene' or 'mitsuba' (a Mitsuba 3 scene file)");
   }
 }
 
