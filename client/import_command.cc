@@ -67,7 +67,7 @@ void addImportCommand(CLI::App& app, int& exitCode) {
   auto* cmd = app.add_subcommand("import", "Write a Mitsuba 3 scene (.xml) as the equivalent invr job JSON (docs/mitsuba-import.md)");
   cmd->add_option("scene", args->scene, "Mitsuba 3 scene file (.xml)")->required();
   cmd->add_option("-o,--output", args->out, "job file to write (asset paths relative to its folder); default: print to stdout");
-  cmd->add_option("-D,--define", args->sceneArgs.defines, "NAME=VALUE: set the scene's <default name=NAME> (repeatable)");
+  cmd->add_option("-D,--define", args->sceneArgs.defines, "NAME=VALUE: set the scene's <default name=NAME> (repeatable)")->allow_extra_args(false);
   cmd->add_flag("!--no-check", args->check, "skip loading the meshes and textures the job names");
   cmd->callback([args, &exitCode] {
     runImport(*args);

@@ -15,11 +15,13 @@ namespace fs = std::filesystem;
 bool isJobFile(const std::string& arg) { return arg.size() > 5 && arg.substr(arg.size() - 5) == ".json"; }
 
 void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams) {
-  cmd->add_option("-D,--define", a.defines, "NAME=VALUE: set a Mitsuba scene's <default name=NAME> (repeatable)");
+  // One value per occurrence, so a positional after them is not taken for one.
+  cmd->add_option("-D,--define", a.defines, "NAME=VALUE: set a Mitsuba scene's <default name=NAME> (repeatable)")->allow_extra_args(false);
   if (withParams)
     cmd->add_option("--param", a.params,
                     "NAME[=V[,V,V]]: recover this parameter (invr or Mitsuba name, e.g. red.reflectance.value=0.01,0.2,0.9), starting "
-                    "at the values given; replaces the job's parameter list (repeatable)");
+                    "at the values given; replaces the job's parameter list (repeatable)")
+        ->allow_extra_args(false);
 }
 
 namespace {

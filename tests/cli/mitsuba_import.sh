@@ -27,7 +27,7 @@ grep -q '"path": "meshes/cbox_floor.obj"' "$WORK/copy/job.json" || fail "import:
 echo "-- an XML scene needs --param to be optimised; with it, it runs (Mitsuba names, per-channel start)"
 out=$("$BIN" optimize "$BOX" 2>&1) && fail "optimize without --param succeeded"
 echo "$out" | grep -q "is a Mitsuba scene: name what to recover with --param" || fail "message without --param: $out"
-"$BIN" optimize "$BOX" -D res=16 -D max_depth=3 --param red.reflectance.value=0.3,0.2,0.1 --steps 2 -o "$WORK/opt" > "$WORK/opt.log" 2>&1 ||
+"$BIN" optimize -D res=16 -D max_depth=3 --param red.reflectance.value=0.3,0.2,0.1 "$BOX" --steps 2 -o "$WORK/opt" > "$WORK/opt.log" 2>&1 ||
   { cat "$WORK/opt.log"; fail "optimize with --param"; }
 grep -q '"red.reflectance.value"' "$WORK/opt/parameters.json" || fail "parameters.json names the parameter as given"
 out=$("$BIN" optimize "$BOX" -D res=16 --param red.sparkle.value --steps 1 -o "$WORK/opt2" 2>&1) && fail "unknown property accepted"
