@@ -69,6 +69,32 @@ struct Bsdf {
       default: return 0.f;
     }
   }
+  // The density sample() draws wi with (non-delta lobes), over the whole sphere: directions that
+  // sample() rejects after drawing them (below the horizon) keep their density. With its
+  // derivatives, what variance estimators need for the score of a BSDF decision (Yan et al. 2024).
+  PdfDerivatives sampledPdf(Vec3 wo, Vec3 wi) const {
+    if (isDelta() || blackFrom(wo)) return {};
+    if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
+    switch (kind) {
+      case BsdfKind::Diffuse: return diffuse::sampledPdf(wo, wi);
+      case BsdfKind::RoughConductor: return rough_conductor::sampledPdf(alpha, wo, wi);
+      case BsdfKind::RoughPlastic: return rough_plastic::sampledPdf(albedo, alpha, ior, wo, wi);
+      default: return {};
+    }
+  }
+  // The direction sample() draws from (uc, u) before any rejection (non-delta lobes).
+  Vec3 sampledDirection(Vec3 wo, float uc, Vec2 u) const {
+    bool flip = wo.z < 0.f;
+    if (flip) wo.z = -wo.z;
+    Vec3 wi;
+    switch (kind) {
+      case BsdfKind::RoughConductor: wi = rough_conductor::sampledDirection(alpha, wo, u); break;
+      case BsdfKind::RoughPlastic: wi = rough_plastic::sampledDirection(albedo, alpha, ior, wo, uc, u); break;
+      default: wi = sampleCosineHemisphere(u); break;
+    }
+    if (flip) wi.z = -wi.z;
+    return wi;
+  }
   std::optional<BsdfSample> sample(Vec3 wo, float uc, Vec2 u) const {
     if (kind == BsdfKind::Dielectric) return dielectric::sample(ior, wo, uc);
     if (blackFrom(wo)) return std::nullopt;

@@ -22,4 +22,12 @@ struct BsdfDerivatives {
   Rgb dAlpha{0.f};
 };
 
+// A sampling density and its derivatives with respect to the BSDF's parameters: d pdf / d alpha,
+// and d pdf / d albedo_c per channel (rough plastic's lobe choice depends on the albedo).
+struct PdfDerivatives {
+  float pdf = 0.f;
+  float dAlpha = 0.f;
+  Rgb dAlbedo{0.f};
+};
+
 }  // namespace invr

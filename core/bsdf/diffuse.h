@@ -19,6 +19,12 @@ inline BsdfDerivatives evalDerivatives(Vec3 wo, Vec3 wi) {
   return d;
 }
 inline float pdf(Vec3 wo, Vec3 wi) { return wo.z > 0.f ? cosineHemispherePdf(wi.z) : 0.f; }
+// Cosine sampling draws no direction below the horizon; no parameter enters its density.
+inline PdfDerivatives sampledPdf(Vec3 wo, Vec3 wi) {
+  PdfDerivatives d;
+  d.pdf = pdf(wo, wi);
+  return d;
+}
 inline std::optional<BsdfSample> sample(Rgb albedo, Vec3 wo, Vec2 u) {
   if (wo.z <= 0.f) return std::nullopt;
   Vec3 wi = sampleCosineHemisphere(u);

@@ -77,6 +77,19 @@ inline float pdfReflect(Vec3 wo, Vec3 wi, float alpha) {
   return pdfVisible(wo, m, alpha) / (4.f * dm);
 }
 
+// Adjoint of pdfReflect with respect to alpha (the variance estimators differentiate sampling
+// densities, Yan et al. 2024 §4.2). pdfReflect = G1(wo) D(m) / (4 wo.z): dot(wo, m) cancels.
+// Defined over the whole sphere of wi, like pdfReflect (reflections below the horizon included).
+inline float dPdfReflect_dAlpha(Vec3 wo, Vec3 wi, float alpha) {
+  Vec3 h = wo + wi;
+  if (lengthSquared(h) == 0.f || wo.z <= 0.f) return 0.f;
+  Vec3 m = normalize(h);
+  if (dot(wo, m) <= 0.f) return 0.f;
+  float g1 = G1(wo, alpha);
+  float dG1 = -g1 * g1 * dLambda_dAlpha(wo, alpha);
+  return (dG1 * D(m, alpha) + g1 * dD_dAlpha(m, alpha)) / (4.f * wo.z);
+}
+
 inline Vec3 reflect(Vec3 w, Vec3 m) { return m * (2.f * dot(w, m)) - w; }
 
 }  // namespace invr::ggx

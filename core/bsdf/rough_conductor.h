@@ -26,6 +26,17 @@ inline float pdf(float alpha, Vec3 wo, Vec3 wi) {
   if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
   return ggx::pdfReflect(wo, wi, alpha);
 }
+// The density sample() draws wi with, over the whole sphere (sample() rejects the reflections
+// that fall below the horizon, but it drew them with this density), and its adjoint.
+inline PdfDerivatives sampledPdf(float alpha, Vec3 wo, Vec3 wi) {
+  PdfDerivatives d;
+  if (wo.z <= 0.f) return d;
+  d.pdf = ggx::pdfReflect(wo, wi, alpha);
+  d.dAlpha = ggx::dPdfReflect_dAlpha(wo, wi, alpha);
+  return d;
+}
+// The direction sample() draws from u before rejecting anything.
+inline Vec3 sampledDirection(float alpha, Vec3 wo, Vec2 u) { return ggx::reflect(wo, ggx::sampleVisible(wo, alpha, u)); }
 inline std::optional<BsdfSample> sample(float alpha, Rgb eta, Rgb k, Vec3 wo, Vec2 u) {
   if (wo.z <= 0.f) return std::nullopt;
   Vec3 m = ggx::sampleVisible(wo, alpha, u);

@@ -62,6 +62,17 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
   if (opt_.maxDepth < 1 || opt_.maxDepth > kMaxWalkDepth) throw InputError("max_depth must be in 1.." + std::to_string(kMaxWalkDepth));
   if (opt_.maxDepth > 1 && opt_.method != GradientMethod::Pt)
     throw InputError("max_depth > 1 (multi-bounce paths) needs method pt: NEE + MIS at every vertex");
+  if (opt_.variance.enabled) {
+    if (opt_.method != GradientMethod::Pt)
+      throw InputError("variance needs method pt: RIS and ReSTIR resampling have no variance derivatives yet");
+    if (opt_.pixels.sampler != PixelSampler::All && opt_.pixels.sampler != PixelSampler::Uniform)
+      throw InputError("variance works with pixel_sampler all or uniform only");
+    if (opt_.variance.spp <= 0) throw InputError("variance spp must be positive");
+    if (!(opt_.variance.samples > 0) || !std::isfinite(opt_.variance.samples)) throw InputError("variance K (samples) must be positive");
+    if (!(opt_.variance.weight >= 0) || !std::isfinite(opt_.variance.weight)) throw InputError("variance weight must be >= 0");
+  }
+  if (params.hasSamplingParameters() && opt_.method != GradientMethod::Pt)
+    throw InputError("sampling parameters (sampling/...) need method pt");
   for (const auto& m : opt_.lossMasks)
     if (!m.empty() && m.size() != size_t(scene.width) * size_t(scene.height)) throw InputError("a target mask does not match the film's size");
 }
@@ -216,6 +227,57 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
     }
   }
   st.secondsDerivative = secondsSince(t0);
+  st.biasTerm = st.loss;
+
+  // Variance pass (Yan et al. 2024): fresh paths, each paired with the primal render as the
+  // independent estimate of its pixel's mean (Eq. 18).
+  t0 = std::chrono::steady_clock::now();
+  if (opt_.variance.enabled && !req.renderOnly) {
+    const double coef = opt_.variance.weight / opt_.variance.samples;
+    const double norm = 1.0 / (double(pixels) * 3.0 * double(batchViews));
+    for (size_t k = 0; k < req.views.size(); ++k) {
+      checkCancel();
+      const int view = req.views[k];
+      const std::vector<float>* weights = weightsOf(k);
+      Image adjointV(scene_.width, scene_.height, 3);
+      for (size_t j = 0; j < pixels; ++j) {
+        float a = float(coef * norm * (weights ? double((*weights)[j]) : 1.0));
+        for (int c = 0; c < 3; ++c) adjointV.data()[j * 3 + size_t(c)] = a;
+      }
+      auto estimator = estimatorFor(opt_, {scene_, params_, opt_, view, opt_.variance.spp, nullptr}, false);
+      PassSpec spec;
+      spec.kind = PassKind::Variance;
+      spec.view = view;
+      spec.stream = streamSeed(req.seed, Stream::Variance);
+      spec.step = req.step;
+      spec.spp = opt_.variance.spp;
+      spec.batch = batchOf(k);
+      spec.adjoint = &adjointV;
+      spec.mean = &out.renders[k];
+      spec.detached = opt_.variance.detached;
+      spec.cancel = req.cancel;
+      PassOutput pr = runPass(scene_, *estimator, spec, *scratch_, &out.gradient);
+      addCounters(pr, nullptr);
+      // Unbiased per pixel: E[mean F^2] - E[I1] E[mean F] = E[F^2] - I^2 (I1 independent).
+      Image var(scene_.width, scene_.height, 3);
+      double sum = 0;
+      for (size_t j = 0; j < pixels; ++j) {
+        const double w = weights ? double((*weights)[j]) : 1.0;
+        for (int c = 0; c < 3; ++c) {
+          const size_t i = j * 3 + size_t(c);
+          const double v = double(pr.secondMoment.data()[i]) - double(out.renders[k].data()[i]) * double(pr.image.data()[i]);
+          var.data()[i] = float(v);
+          sum += w * v;
+        }
+      }
+      const double term = coef * sum * norm;
+      st.varianceTerm += term;
+      if (k < st.viewLoss.size()) st.viewLoss[k] += term * double(batchViews);
+      out.variances.push_back(std::move(var));
+    }
+    st.loss += st.varianceTerm;
+  }
+  st.secondsVariance = secondsSince(t0);
 
   // Next step's reservoirs: this step's, plus the old ones this step did not replace (Alg. 8).
   t0 = std::chrono::steady_clock::now();

@@ -48,6 +48,10 @@ struct GradientStats {
   // would add the render's variance to the figure.
   double loss = 0.0;
   std::vector<double> viewLoss;
+  // Variance-aware jobs: loss = biasTerm + varianceTerm, varianceTerm = (weight / K) * V with V the
+  // unbiased per-pixel variance estimate (mean over pixels and channels; variance pass).
+  double biasTerm = 0.0, varianceTerm = 0.0;
+  double secondsVariance = 0;
   double secondsPrimal = 0, secondsDerivative = 0, secondsReservoirUpdate = 0;
   double secondsStage1 = 0;   // pixel-sampling maps (when refreshed this step)
   uint64_t pixelsTraced = 0;  // distinct pixels traced by the primal pass
@@ -64,6 +68,7 @@ struct GradientResult {
   std::vector<double> gradient;  // d loss / d theta, one entry per parameter value
   GradientStats stats;
   std::vector<Image> renders;    // primal image per requested view
+  std::vector<Image> variances;  // variance-aware jobs: per requested view, the per-pixel variance estimate
 };
 
 // Per-job state that survives between steps (the worker's session cache): reservoir chains.

@@ -15,6 +15,17 @@ enum class GradientMethod { Pt, Ris, Restir };
 GradientMethod gradientMethodFromName(const std::string& name);  // throws InputError
 const char* gradientMethodName(GradientMethod m);
 
+// Variance-aware losses (Yan et al. 2024, Eq. 26-33): L = L_bias + (weight / samples) * V, with V the
+// per-pixel variance of one sample of the job's estimator (mean over pixels and channels, like the
+// loss). A variance pass of `spp` samples per pixel estimates V's derivative (variance_visitor.h).
+struct VarianceOptions {
+  bool enabled = false;
+  double weight = 1.0;   // lambda
+  double samples = 1.0;  // K: samples per pixel of the render whose variance is weighed
+  bool detached = false; // the detached baseline (Weier et al. 2021) instead of the unbiased estimator
+  int spp = 1;           // training spp of the variance pass
+};
+
 struct GradientOptions {
   GradientMethod method = GradientMethod::Restir;
   RestirSettings restir;      // candidates and visibility also apply to ris
@@ -37,6 +48,7 @@ struct GradientOptions {
   // Per view (indexed by view; missing or empty: unmasked), per pixel loss weights from the job's
   // target masks, normalised to mean 1 over the film so the loss is the masked pixels' mean.
   std::vector<std::vector<float>> lossMasks;
+  VarianceOptions variance;
 };
 
 }  // namespace invr

@@ -14,6 +14,7 @@
 #include "core/diff/gradient_options.h"
 #include "core/diff/gradient_sink.h"
 #include "core/diff/parameters.h"
+#include "core/diff/variance_visitor.h"
 #include "core/restir/reservoir_store.h"
 
 namespace invr {
@@ -40,6 +41,14 @@ class InteriorEstimator {
   // sample leaves for the next step; the driver has marked it empty (mesh = UINT32_MAX) before.
   virtual Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
                      StoredReservoir* reservoir) const = 0;
+  // The variance pass (Yan et al. 2024): traces one sample and adds its weighted variance
+  // derivative (variance_visitor.h) to `grad`. Only estimators whose every random decision has a
+  // known density implement it (PT); the others are refused when the job is built.
+  virtual Rgb varianceSample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, const VarianceWeights& weights,
+                             PathGradient& grad) const {
+    (void)in, (void)sampler, (void)counters, (void)weights, (void)grad;
+    throw std::logic_error("this estimator has no variance derivatives");
+  }
 };
 
 // What an estimator is built from, once per pass (one view).

@@ -1,5 +1,8 @@
 #include "core/diff/parameters.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
 
@@ -88,7 +91,8 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   if (find(givenName)) return fail("listed twice");
   const std::string name = invrParameterName(scene, givenName);
   auto parts = split(name);
-  if (parts.size() != 3) return fail("expected materials/<name>/albedo|roughness or lights/<name>/intensity");
+  if (!parts.empty() && parts[0] == "sampling") return addSampling(scene, givenName, parts, o);
+  if (parts.size() != 3) return fail("expected materials/<name>/albedo|roughness, lights/<name>/intensity or sampling/...");
   ParameterSlot slot;
   slot.name = givenName;
   if (parts[0] == "materials") {
@@ -130,15 +134,10 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
     slot.lower = kPositiveFloor;
     slot.upper = std::numeric_limits<float>::infinity();
   } else {
-    return fail("unknown parameter group '" + parts[0] + "' (use materials or lights)");
+    return fail("unknown parameter group '" + parts[0] + "' (use materials, lights or sampling)");
   }
   slot.size = uint32_t(slot.channels * (slot.width > 0 ? slot.width * slot.height : 1));
-  slot.offset = uint32_t(size_);
-  if (o.lower) slot.lower = *o.lower;
-  if (o.upper) slot.upper = *o.upper;
-  if (o.learningRate) slot.learningRate = *o.learningRate;
-  if (!(slot.lower <= slot.upper)) return fail("bounds are inverted (lower " + std::to_string(slot.lower) + " > upper " + std::to_string(slot.upper) + ")");
-  if (!(slot.learningRate > 0.f) || !std::isfinite(slot.learningRate)) return fail("learning rate must be a positive finite number");
+  applyOptions(slot, o);
   auto& table = slot.kind == ParamKind::Albedo ? albedo_ : slot.kind == ParamKind::Roughness ? roughness_ : intensity_;
   int owner = slot.material >= 0 ? slot.material : slot.light;
   if (size_t(owner) < table.size() && table[size_t(owner)] >= 0)
@@ -147,6 +146,78 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   size_ += slot.size;
   if (table.size() <= size_t(owner)) table.resize(size_t(owner) + 1, -1);
   table[size_t(owner)] = int(slot.offset);
+  slots_.push_back(slot);
+  return slots_.back();
+}
+
+void ParameterRegistry::applyOptions(ParameterSlot& slot, const ParameterOptions& o) const {
+  auto fail = [&](const std::string& why) { throw InputError("parameter '" + slot.name + "': " + why); };
+  slot.offset = uint32_t(size_);
+  if (o.lower) slot.lower = *o.lower;
+  if (o.upper) slot.upper = *o.upper;
+  if (o.learningRate) slot.learningRate = *o.learningRate;
+  if (!(slot.lower <= slot.upper)) fail("bounds are inverted (lower " + std::to_string(slot.lower) + " > upper " + std::to_string(slot.upper) + ")");
+  if (!(slot.learningRate > 0.f) || !std::isfinite(slot.learningRate)) fail("learning rate must be a positive finite number");
+}
+
+const ParameterSlot& ParameterRegistry::addSampling(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
+                                                    const ParameterOptions& o) {
+  auto fail = [&](const std::string& why) -> const ParameterSlot& { throw InputError("parameter '" + givenName + "': " + why); };
+  const std::string usage = "use sampling/light_logits, sampling/pixel_light_logits/<view> or sampling/rr_survival";
+  if (parts.size() < 2) return fail(usage);
+  ParameterSlot slot;
+  slot.name = givenName;
+  slot.channels = 1;
+  const int lights = int(scene.lights.size());
+  if (parts[1] == "light_logits" && parts.size() == 2) {
+    if (lights < 2) return fail("light selection needs at least two lights (the scene has " + std::to_string(lights) + ")");
+    if (lightLogits_ >= 0) return fail("listed twice");
+    slot.kind = ParamKind::LightLogits;
+    slot.size = uint32_t(lights);
+    slot.lower = -20.f;
+    slot.upper = 20.f;
+    slot.learningRate = 0.1f;
+  } else if (parts[1] == "pixel_light_logits" && parts.size() == 3) {
+    if (lights < 2) return fail("light selection needs at least two lights (the scene has " + std::to_string(lights) + ")");
+    char* end = nullptr;
+    long view = std::strtol(parts[2].c_str(), &end, 10);
+    if (parts[2].empty() || *end != '\0' || view < 0 || view >= long(scene.cameras.size()))
+      return fail("view '" + parts[2] + "' is not a view index (the scene has " + std::to_string(scene.cameras.size()) + " views, 0.." +
+                  std::to_string(int(scene.cameras.size()) - 1) + ")");
+    if (pixelLogits(int(view))) return fail("listed twice");
+    const int w = o.mapWidth > 0 ? o.mapWidth : scene.width, h = o.mapHeight > 0 ? o.mapHeight : scene.height;
+    if (w > scene.width || h > scene.height || o.mapWidth < 0 || o.mapHeight < 0)
+      return fail("map resolution " + std::to_string(w) + "x" + std::to_string(h) + " must be positive and at most the film's (" +
+                  std::to_string(scene.width) + "x" + std::to_string(scene.height) + ")");
+    slot.kind = ParamKind::PixelLightLogits;
+    slot.view = int(view);
+    slot.width = w;
+    slot.height = h;
+    slot.channels = lights;
+    slot.size = uint32_t(w * h * lights);
+    slot.lower = -20.f;
+    slot.upper = 20.f;
+    slot.learningRate = 0.1f;
+  } else if (parts[1] == "rr_survival" && parts.size() == 2) {
+    if (scene.sampling.survival.empty())
+      return fail("needs fixed-survival Russian roulette (render.russian_roulette \"fixed\"; a job naming this parameter gets it)");
+    if (survival_ >= 0) return fail("listed twice");
+    slot.kind = ParamKind::Survival;
+    slot.size = uint32_t(scene.sampling.survival.size());
+    slot.lower = 0.05f;
+    slot.upper = 1.f;
+    slot.learningRate = 0.02f;
+  } else {
+    return fail(usage);
+  }
+  applyOptions(slot, o);
+  if (slot.kind == ParamKind::LightLogits) lightLogits_ = int(slot.offset);
+  if (slot.kind == ParamKind::Survival) survival_ = int(slot.offset);
+  if (slot.kind == ParamKind::PixelLightLogits) {
+    if (pixelLogits_.size() <= size_t(slot.view)) pixelLogits_.resize(size_t(slot.view) + 1, -1);
+    pixelLogits_[size_t(slot.view)] = int(slots_.size());
+  }
+  size_ += slot.size;
   slots_.push_back(slot);
   return slots_.back();
 }
@@ -161,6 +232,7 @@ std::vector<float> ParameterRegistry::read(const Scene& scene) const {
   std::vector<float> theta(size_);
   for (const auto& s : slots_) {
     float* out = theta.data() + s.offset;
+    if (readSampling(scene, s, out)) continue;
     if (s.kind == ParamKind::LightIntensity) {
       const Light& l = scene.lights[size_t(s.light)];
       Rgb v = (l.kind == LightKind::Point || l.kind == LightKind::Spot) ? l.intensity : l.radiance;
@@ -183,9 +255,25 @@ std::vector<float> ParameterRegistry::read(const Scene& scene) const {
 
 void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, bool refreshSampling) const {
   if (theta.size() != size_) throw InputError("parameter vector has " + std::to_string(theta.size()) + " values, expected " + std::to_string(size_));
-  bool emissionChanged = false;
+  bool emissionChanged = false, selectionChanged = false;
   for (const auto& s : slots_) {
     const float* in = theta.data() + s.offset;
+    switch (s.kind) {
+      case ParamKind::LightLogits:
+        scene.sampling.lightLogits.assign(in, in + s.size);
+        selectionChanged = true;
+        continue;
+      case ParamKind::PixelLightLogits: {
+        if (scene.sampling.pixelLogits.size() <= size_t(s.view)) scene.sampling.pixelLogits.resize(size_t(s.view) + 1);
+        auto& map = scene.sampling.pixelLogits[size_t(s.view)];
+        map.width = s.width;
+        map.height = s.height;
+        map.logits.assign(in, in + s.size);
+        continue;
+      }
+      case ParamKind::Survival: scene.sampling.survival.assign(in, in + s.size); continue;
+      default: break;
+    }
     if (s.kind == ParamKind::LightIntensity) {
       Light& l = scene.lights[size_t(s.light)];
       Rgb v(in[0], in[1], in[2]);
@@ -206,7 +294,9 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
       for (int x = 0; x < s.width; ++x)
         for (int c = 0; c < im.channels(); ++c) im.at(x, y, c) = in[(y * s.width + x) * s.channels + std::min(c, s.channels - 1)] * inv;
   }
-  if (emissionChanged && refreshSampling) scene.updateLightSelection();
+  // Logits are sampling itself: always applied. Power-based selection follows emission unless
+  // the caller keeps sampling fixed.
+  if (selectionChanged || (emissionChanged && refreshSampling)) scene.updateLightSelection();
 }
 
 void ParameterRegistry::clampToBounds(std::vector<float>& theta) const {
@@ -214,11 +304,40 @@ void ParameterRegistry::clampToBounds(std::vector<float>& theta) const {
     for (uint32_t i = 0; i < s.size; ++i) theta[s.offset + i] = std::clamp(theta[s.offset + i], s.lower, s.upper);
 }
 
+bool ParameterRegistry::readSampling(const Scene& scene, const ParameterSlot& s, float* out) const {
+  // The pmf logits start from: the scene's selection now (log pmf, floored at the lower bound).
+  auto currentLogits = [&](float* dst) {
+    for (size_t i = 0; i < scene.lights.size(); ++i) {
+      float p = scene.lightSelection().pmf(i);
+      dst[i] = p > 0.f ? std::max(std::log(p), s.lower) : s.lower;
+    }
+  };
+  switch (s.kind) {
+    case ParamKind::LightLogits:
+      if (scene.sampling.lightLogits.size() == s.size) std::copy(scene.sampling.lightLogits.begin(), scene.sampling.lightLogits.end(), out);
+      else currentLogits(out);
+      return true;
+    case ParamKind::PixelLightLogits: {
+      const auto* map = size_t(s.view) < scene.sampling.pixelLogits.size() ? &scene.sampling.pixelLogits[size_t(s.view)] : nullptr;
+      if (map && map->logits.size() == s.size) {
+        std::copy(map->logits.begin(), map->logits.end(), out);
+      } else {
+        for (int c = 0; c < s.width * s.height; ++c) currentLogits(out + size_t(c) * size_t(s.channels));
+      }
+      return true;
+    }
+    case ParamKind::Survival:
+      std::copy(scene.sampling.survival.begin(), scene.sampling.survival.end(), out);
+      return true;
+    default: return false;
+  }
+}
+
 std::string describeParameters(const ParameterRegistry& r) {
   std::string out;
   for (const auto& s : r.slots()) {
     out += s.name + "[" + std::to_string(s.size) + "]";
-    if (s.width > 0) out += " (" + std::to_string(s.width) + "x" + std::to_string(s.height) + " texture)";
+    if (s.width > 0) out += " (" + std::to_string(s.width) + "x" + std::to_string(s.height) + (s.kind == ParamKind::PixelLightLogits ? " map)" : " texture)");
     out += "\n";
   }
   return out;

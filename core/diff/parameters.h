@@ -2,6 +2,11 @@
 //   materials/<name>/albedo     diffuse or rough_plastic albedo: 3 values, or width*height*3 texels
 //   materials/<name>/roughness  GGX alpha of rough_conductor/rough_plastic: 1 value, or width*height
 //   lights/<name>/intensity     area/constant-environment radiance or point/spot intensity: 3 values
+// Sampling parameters (Yan et al. 2024; they change a render's noise, never its mean):
+//   sampling/light_logits                 one logit per light: NEE picks lights by their softmax
+//   sampling/pixel_light_logits/<view>    per cell of a map over view <view>'s film: one logit per light
+//   sampling/rr_survival                  Russian-roulette survival of bounce 1, 2, ... (fixed survival)
+// Registering logits starts them at log(the current selection pmf): today's selection by power.
 // Mitsuba 3 names of the same values are accepted too (invrParameterName).
 // Values are the effective ones (texture scale applied). Only registered parameters get derivative
 // storage.
@@ -15,7 +20,7 @@
 
 namespace invr {
 
-enum class ParamKind { Albedo, Roughness, LightIntensity };
+enum class ParamKind { Albedo, Roughness, LightIntensity, LightLogits, PixelLightLogits, Survival };
 
 // Default lower bound of albedos and light intensities. Above zero so that optimisation never
 // changes where a light sample's target is positive: ReSTIR's normalisation (Z) counts the reused
@@ -29,6 +34,7 @@ struct ParameterSlot {
   uint32_t offset = 0, size = 0;
   int channels = 3;  // values per texel (3 colour, 1 scalar)
   int material = -1, light = -1;
+  int view = -1;  // PixelLightLogits
   int width = 0, height = 0;  // texture resolution; 0 for constants
   float lower = 0.f, upper = 1.f;
   float learningRate = 0.01f;
@@ -36,6 +42,7 @@ struct ParameterSlot {
 
 struct ParameterOptions {
   std::optional<float> lower, upper, learningRate;
+  int mapWidth = 0, mapHeight = 0;  // PixelLightLogits: the map's resolution (0: the film's)
 };
 
 class ParameterRegistry {
@@ -58,11 +65,25 @@ class ParameterRegistry {
   int albedoOffset(int material) const { return lookup(albedo_, material); }
   int roughnessOffset(int material) const { return lookup(roughness_, material); }
   int intensityOffset(int light) const { return lookup(intensity_, light); }
+  // Sampling parameters: offsets, or -1 if not optimised.
+  int lightLogitsOffset() const { return lightLogits_; }
+  int survivalOffset() const { return survival_; }
+  const ParameterSlot* pixelLogits(int view) const {
+    int i = lookup(pixelLogits_, view);
+    return i >= 0 ? &slots_[size_t(i)] : nullptr;
+  }
+  bool hasSamplingParameters() const { return lightLogits_ >= 0 || survival_ >= 0 || !pixelLogits_.empty(); }
 
  private:
+  const ParameterSlot& addSampling(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
+                                   const ParameterOptions& o);
+  void applyOptions(ParameterSlot& slot, const ParameterOptions& o) const;
+  bool readSampling(const Scene& scene, const ParameterSlot& s, float* out) const;
   static int lookup(const std::vector<int>& v, int i) { return i >= 0 && size_t(i) < v.size() ? v[size_t(i)] : -1; }
   std::vector<ParameterSlot> slots_;
   std::vector<int> albedo_, roughness_, intensity_;
+  std::vector<int> pixelLogits_;  // per view: index into slots_
+  int lightLogits_ = -1, survival_ = -1;
   size_t size_ = 0;
 };
 

@@ -41,14 +41,18 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
   const int W = scene.width, H = scene.height;
   const int spp = spec.spp;
   const Camera& cam = scene.cameras[size_t(spec.view)];
-  const bool derivative = spec.kind == PassKind::Derivative, stage1 = spec.kind == PassKind::Stage1;
+  const bool variance = spec.kind == PassKind::Variance;
+  // Both add weighted derivatives into the gradient.
+  const bool derivative = spec.kind == PassKind::Derivative || variance, stage1 = spec.kind == PassKind::Stage1;
   if (derivative && (!gradient || !spec.adjoint)) throw std::logic_error("runPass: a derivative pass needs an adjoint and a gradient");
+  if (variance && !spec.mean) throw std::logic_error("runPass: a variance pass needs the primal render");
   constexpr int kTile = 16;
   const int tilesX = (W + kTile - 1) / kTile, tilesY = (H + kTile - 1) / kTile;
   std::vector<TileGradient> tiles(derivative ? size_t(tilesX) * size_t(tilesY) : 0);
   PassOutput res;
   res.image = Image(W, H, 3);
   if (stage1) res.derivSq.assign(size_t(W) * size_t(H), 0.f);
+  if (variance) res.secondMoment = Image(W, H, 3);
   std::mutex mergeMutex;
   std::atomic<bool> cancelled{false};
 
@@ -77,8 +81,14 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
           const int samples = spp * int(spec.batch ? spec.batch->draws[size_t(pixel)] : 1u);
           const Rgb adjoint = derivative ? spec.adjoint->rgb(x, y) / float(samples) : stage1 ? Rgb(1.f) : Rgb(0.f);
           PathGradient* grad = derivative || stage1 ? &pixelGrad : nullptr;
-          double acc[3] = {0, 0, 0};
+          double acc[3] = {0, 0, 0}, acc2[3] = {0, 0, 0};
           int kept = 0;
+          VarianceWeights vw;
+          if (variance) {
+            vw.mean = spec.mean->rgb(x, y);
+            vw.adjoint = adjoint;
+            vw.detached = spec.detached;
+          }
           for (int sample = 0; sample < samples; ++sample) {
             CameraSampleInput in;
             in.x = x;
@@ -89,20 +99,25 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
             in.o = cam.eye;
             in.d = cam.direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
             const size_t mark = pixelGrad.size();
-            Rgb v = estimator.sample(in, sampler, counters, adjoint, grad, slots && sample < spp ? &slots[in.slot] : nullptr);
+            Rgb v = variance ? estimator.varianceSample(in, sampler, counters, vw, pixelGrad)
+                             : estimator.sample(in, sampler, counters, adjoint, grad, slots && sample < spp ? &slots[in.slot] : nullptr);
             if (!isFinite(v) || (grad && !pixelGrad.finiteFrom(mark))) {
-              ++(spec.kind == PassKind::Primal ? drops.primal : derivative ? drops.derivative : drops.stage1);
+              ++(spec.kind == PassKind::Primal ? drops.primal : variance ? drops.variance : derivative ? drops.derivative : drops.stage1);
               pixelGrad.truncate(mark);
               continue;
             }
             ++kept;
             acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
+            if (variance) {
+              acc2[0] += double(v.x) * v.x; acc2[1] += double(v.y) * v.y; acc2[2] += double(v.z) * v.z;
+            }
             if (stage1) {  // one sample's squared derivative norm (one sample per cell)
               res.derivSq[size_t(pixel)] += float(squaredNorm(pixelGrad.entries()));
               pixelGrad.clear();
             }
           }
           if (kept > 0) res.image.setRgb(x, y, Rgb(float(acc[0] / kept), float(acc[1] / kept), float(acc[2] / kept)));
+          if (kept > 0 && variance) res.secondMoment.setRgb(x, y, Rgb(float(acc2[0] / kept), float(acc2[1] / kept), float(acc2[2] / kept)));
           // The adjoint was split over all samples; the kept ones carry the whole pixel.
           if (derivative) scratch->commit(pixelGrad, kept > 0 ? float(samples) / float(kept) : 0.f);
           INVR_INVARIANT(pixelGrad.size() == 0, "a pixel's derivatives outlived it");

@@ -21,6 +21,7 @@ enum class PassKind {
   Primal,       // radiance only
   Derivative,   // radiance, and adjoint * d/dtheta summed into the gradient
   Stage1,       // radiance, and per pixel the squared norm of one sample's d/dtheta (adjoint 1)
+  Variance,     // radiance and its square, and the weighted variance derivative (Yan et al. 2024)
 };
 
 struct PassSpec {
@@ -30,7 +31,9 @@ struct PassSpec {
   uint64_t step = 0;
   int spp = 1;
   const PixelBatch* batch = nullptr;  // null: every pixel once
-  const Image* adjoint = nullptr;     // Derivative: dL/dI per pixel and channel
+  const Image* adjoint = nullptr;     // Derivative: dL/dI per pixel and channel; Variance: dL/dV
+  const Image* mean = nullptr;        // Variance: an independent estimate of each pixel (the primal render)
+  bool detached = false;              // Variance: the detached baseline (variance_visitor.h)
   StoredReservoir* reservoirs = nullptr;  // one slot per pixel sample (first draw), or null
   const std::atomic<bool>* cancel = nullptr;  // checked per 16x16 tile; raised: EvaluationCancelled
 };
@@ -38,6 +41,7 @@ struct PassSpec {
 struct PassOutput {
   Image image;                 // the pass's radiance estimate per pixel (pixels outside the batch: 0)
   std::vector<float> derivSq;  // Stage1: per pixel
+  Image secondMoment;          // Variance: the mean of the squared samples per pixel and channel
   SampleDrops drops;
   RayStats rays;
   RestirCounters restir;

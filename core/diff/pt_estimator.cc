@@ -10,7 +10,7 @@ namespace {
 
 class PtEstimator final : public InteriorEstimator {
  public:
-  explicit PtEstimator(const EstimatorSetup& s) : scene_(s.scene), params_(s.params) {
+  explicit PtEstimator(const EstimatorSetup& s) : scene_(s.scene), params_(s.params), view_(s.view) {
     walk_.maxDepth = s.options.maxDepth;
     walk_.russianRouletteDepth = s.options.russianRouletteDepth;
     walk_.bsdfMis = true;
@@ -18,13 +18,26 @@ class PtEstimator final : public InteriorEstimator {
   Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
              StoredReservoir*) const override {
     PathContext ctx{&counters.rays, nullptr};
-    NeeMisDirect direct{scene_};
-    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad);
+    thread_local std::vector<float> pmf;
+    WalkSettings walk = walk_;
+    walk.lightPmf = pixelLightPmf(scene_, view_, in.x, in.y, pmf);
+    NeeMisDirect direct{scene_, walk.lightPmf};
+    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk, direct, &ctx, adjoint, grad);
+  }
+  Rgb varianceSample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, const VarianceWeights& weights,
+                     PathGradient& grad) const override {
+    PathContext ctx{&counters.rays, nullptr};
+    thread_local std::vector<float> pmf;
+    VarianceWeights w = weights;
+    w.view = view_;
+    w.pixelPmf = pixelLightPmf(scene_, view_, in.x, in.y, pmf, &w.pixelCell);
+    return walkVariancePath(scene_, params_, in.o, in.d, sampler, walk_, w, &ctx, grad);
   }
 
  private:
   const Scene& scene_;
   const ParameterRegistry& params_;
+  int view_;
   WalkSettings walk_;
 };
 

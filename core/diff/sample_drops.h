@@ -16,14 +16,17 @@ struct SampleDrops {
   uint64_t derivative = 0;
   // Stage-1 samples of pixel sampling (their cell keeps the statistics of none).
   uint64_t stage1 = 0;
+  // Camera samples of a variance pass (Yan et al. 2024) with a non-finite value or derivative.
+  uint64_t variance = 0;
   // Pixel-probability map values that were not finite (they get the uniform share only).
   uint64_t pixelMap = 0;
 
-  uint64_t total() const { return primal + derivative + stage1 + pixelMap; }
+  uint64_t total() const { return primal + derivative + stage1 + variance + pixelMap; }
   SampleDrops& operator+=(const SampleDrops& o) {
     primal += o.primal;
     derivative += o.derivative;
     stage1 += o.stage1;
+    variance += o.variance;
     pixelMap += o.pixelMap;
     return *this;
   }

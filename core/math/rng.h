@@ -25,6 +25,7 @@ enum class Stream : uint64_t {
   ViewBatch = 7,         // which views a step renders
   FinalRender = 8,       // renders of the result
   ImageError = 9,        // the image-error meter's renders
+  Variance = 10,         // variance pass of a variance-aware step (Yan et al. 2024)
 };
 
 // The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as

@@ -57,6 +57,8 @@ inline bool isBlack(Vec3 v) { return v.x == 0.f && v.y == 0.f && v.z == 0.f; }
 // RGB radiance/reflectance. Same storage as Vec3; the alias documents intent.
 using Rgb = Vec3;
 inline float luminance(Rgb c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+// d luminance / d channel.
+inline Rgb luminanceWeights() { return Rgb(0.2126f, 0.7152f, 0.0722f); }
 
 // Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
 struct Frame {

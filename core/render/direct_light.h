@@ -30,6 +30,9 @@ struct DirectPath {
   bool throughBsdf = true;  // false for emission seen directly or through a delta lobe
   LightSampleRef light;
   float emissionPerUnit = 0.f;  // d emission / d (light radiance or intensity)
+  // NEE only: the light-half MIS weight inside `weight`, and whether MIS applied (not for delta lights).
+  float mis = 1.f;
+  bool misWeighted = false;
   Rgb contribution() const { return weight * bsdfValue * emission; }
 };
 
@@ -96,7 +99,24 @@ inline DirectPath pathToLight(const ShadingPoint& sp, const LightSample& ls, Rgb
 
 // Baseline B.1: one light chosen by power, MIS-weighted against BSDF sampling (the BSDF-sampled
 // half is added by whoever traces the BSDF ray). False if the sample contributes nothing.
-bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out);
+// `lightPmf` (optional, one per light) replaces the scene's selection (per-pixel selection);
+// `chosen` (optional) receives the light picked, whether or not it contributes: variance
+// estimators score every random choice.
+bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out,
+                     const float* lightPmf = nullptr, int* chosen = nullptr);
+
+// Index drawn from a small pmf (sums to 1) by a linear scan; the last positive entry absorbs rounding.
+inline size_t sampleSmallPmf(const float* pmf, size_t n, float u) {
+  float acc = 0.f;
+  size_t last = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (!(pmf[i] > 0.f)) continue;
+    last = i;
+    acc += pmf[i];
+    if (u < acc) return i;
+  }
+  return last;
+}
 
 // Delta lights as seen from one shading point. A point or spot light is a single sample whatever
 // the random numbers, so the RIS candidates that pick it again and the ReSTIR neighbours that

@@ -2,12 +2,14 @@
 
 namespace invr {
 
-bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out) {
+bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, PathContext* ctx, DirectPath& out,
+                     const float* lightPmf, int* chosen) {
   if (scene.lights.empty()) return false;
   float uSel = sampler.next1D();
   Vec2 u2(sampler.next1D(), sampler.next1D());
-  size_t li = scene.lightSelection().sample(uSel);
-  float pmf = scene.lightSelection().pmf(li);
+  size_t li = lightPmf ? sampleSmallPmf(lightPmf, scene.lights.size(), uSel) : scene.lightSelection().sample(uSel);
+  float pmf = lightPmf ? lightPmf[li] : scene.lightSelection().pmf(li);
+  if (chosen) *chosen = int(li);
   if (!(pmf > 0.f)) return false;
   LightSample ls = sampleLight(scene.lights[li], scene, sp.hit->p, u2, uint32_t(li));
   if (!(ls.pdf > 0.f) || isBlack(ls.radiance)) return false;
@@ -18,6 +20,8 @@ bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sample
   float w = ls.delta ? 1.f : powerHeuristic(lightPdf, sp.bsdf->pdf(sp.wo, sp.frame.toLocal(ls.wi)));
   // In solid angle: weight = w / lightPdf; pathToLight multiplies by the jacobian, so divide here.
   out = pathToLight(sp, ls, f, w / (pmf * ls.pdfNative));
+  out.mis = w;
+  out.misWeighted = !ls.delta;
   return true;
 }
 

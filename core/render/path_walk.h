@@ -8,6 +8,12 @@
 //       emission(Rgb weight, Rgb Le, const LightSampleRef& light, float perUnit)
 //       direct(Rgb beta, const DirectPath& p, const WalkVertex& v)
 //       bounce(const WalkVertex& v, Vec3 wiLocal)         (non-delta continuations only)
+// Visitors that differentiate sampling densities (variance, core/diff/variance_visitor.h) also
+// define, and are detected by:
+//       emission(weight, Le, light, perUnit, EmissionMis)   (the BSDF-half MIS weight applied)
+//       rejected(const WalkVertex& v, float uc, Vec2 u)      (a BSDF draw the walk rejected)
+//       roulette(q, survived, channel, depth)                (channel: throughput RR's max channel, or -1;
+//                                                              depth: the vertex whose bounce it follows)
 // Random numbers are consumed in a fixed order, so equal samplers walk equal paths.
 #pragma once
 
@@ -25,6 +31,16 @@ struct WalkSettings {
   // weighted by the BSDF half of the power heuristic. false (RIS, ReSTIR): the direct strategy
   // alone accounts for emission seen through non-delta lobes.
   bool bsdfMis = true;
+  // Per camera sample: the light-selection pmf (one per light) when it is not the scene's
+  // (per-pixel selection); the direct strategy must sample with the same one.
+  const float* lightPmf = nullptr;
+};
+
+// The BSDF half of MIS as applied to emission reached by BSDF sampling: w = pdf_bsdf^2 /
+// (pdf_bsdf^2 + pdf_light^2); `weighted` is false after the camera or a delta lobe (w = 1).
+struct EmissionMis {
+  float w = 1.f;
+  bool weighted = false;
 };
 
 // One surface vertex as a visitor sees it.
@@ -44,6 +60,15 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
   float prevBsdfPdf = 0.f;
   Vec3 prevP = o;
   const auto& select = scene.lightSelection();
+  auto pmfOf = [&](size_t li) { return s.lightPmf ? s.lightPmf[li] : select.pmf(li); };
+  auto emit = [&](Rgb weight, Rgb Le, const LightSampleRef& ref, float perUnit, EmissionMis mis) {
+    if constexpr (requires { v.emission(weight, Le, ref, perUnit, mis); }) v.emission(weight, Le, ref, perUnit, mis);
+    else v.emission(weight, Le, ref, perUnit);
+  };
+  auto rejected = [&](const WalkVertex& vx, float uc, Vec2 u) {
+    if constexpr (requires { v.rejected(vx, uc, u); }) v.rejected(vx, uc, u);
+  };
+  const std::vector<float>& survival = scene.sampling.survival;
   for (int depth = 0;; ++depth) {
     if (ctx && ctx->stats) ++(depth == 0 ? ctx->stats->camera : ctx->stats->bounce);
     if (ctx && ctx->record) ctx->record->push_back({o, d, std::numeric_limits<float>::infinity(), false});
@@ -54,11 +79,11 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
         const Light& l = scene.lights[li];
         Rgb Le = environmentRadiance(l, d);
         if (isBlack(Le)) continue;
-        float w = specular ? 1.f : powerHeuristic(prevBsdfPdf, select.pmf(li) * environmentPdf(l, d));
+        float w = specular ? 1.f : powerHeuristic(prevBsdfPdf, pmfOf(li) * environmentPdf(l, d));
         LightSampleRef ref;
         ref.light = li;
         ref.setDirection(d);
-        v.emission(beta * w, Le, ref, l.kind == LightKind::ConstantEnvironment ? l.scale : 0.f);
+        emit(beta * w, Le, ref, l.kind == LightKind::ConstantEnvironment ? l.scale : 0.f, EmissionMis{w, !specular});
       }
       return;
     }
@@ -66,13 +91,13 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
       const Light& l = scene.lights[size_t(li)];
       Rgb Le = areaEmission(l, hit.ng, -d);
       if (!isBlack(Le)) {
-        float w = specular ? 1.f : powerHeuristic(prevBsdfPdf, select.pmf(size_t(li)) * areaLightPdf(l, prevP, hit.p, hit.ng));
+        float w = specular ? 1.f : powerHeuristic(prevBsdfPdf, pmfOf(size_t(li)) * areaLightPdf(l, prevP, hit.p, hit.ng));
         LightSampleRef ref;
         ref.light = uint32_t(li);
         ref.tri = hit.tri;
         ref.b1 = hit.b1;
         ref.b2 = hit.b2;
-        v.emission(beta * w, Le, ref, l.scale);
+        emit(beta * w, Le, ref, l.scale, EmissionMis{w, !specular});
       }
     }
     if (depth >= s.maxDepth) return;
@@ -93,11 +118,17 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
     float uc = sampler.next1D();
     Vec2 u(sampler.next1D(), sampler.next1D());
     auto bs = bsdf.sample(sp.wo, uc, u);
-    if (!bs) return;
+    if (!bs) {
+      if (!bsdf.isDelta()) rejected(vx, uc, u);
+      return;
+    }
     Vec3 wi = sp.frame.toWorld(bs->wi);
     // Shading normals can send a reflection below the geometric surface (or the reverse): drop it.
     float side = dot(wi, hit.ng) * dot(-d, hit.ng);
-    if (bs->transmitted ? side >= 0.f : side <= 0.f) return;
+    if (bs->transmitted ? side >= 0.f : side <= 0.f) {
+      if (!bs->delta) rejected(vx, uc, u);
+      return;
+    }
     if (!bs->delta) v.bounce(vx, bs->wi);
     beta *= bs->weight;
     specular = bs->delta;
@@ -105,9 +136,23 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
     prevP = hit.p;
     o = offsetOrigin(hit.p, hit.ng, wi);
     d = wi;
-    if (depth + 1 >= s.russianRouletteDepth) {
-      float q = std::min(1.f, maxComponent(beta));
-      if (!(sampler.next1D() < q)) return;
+    auto roulette = [&](float q, bool survived, int channel) {
+      if constexpr (requires { v.roulette(q, survived, channel, depth); }) v.roulette(q, survived, channel, depth);
+    };
+    if (!survival.empty()) {  // fixed survival per bounce (bounce depth + 1)
+      float q = survival[std::min(size_t(depth), survival.size() - 1)];
+      if (q < 1.f) {
+        bool survived = sampler.next1D() < q;
+        roulette(q, survived, -1);
+        if (!survived) return;
+        beta = beta / q;
+      }
+    } else if (depth + 1 >= s.russianRouletteDepth) {
+      float m = maxComponent(beta);
+      float q = std::min(1.f, m);
+      bool survived = sampler.next1D() < q;
+      if (q < 1.f) roulette(q, survived, beta.x == m ? 0 : beta.y == m ? 1 : 2);
+      if (!survived) return;
       beta = beta / q;
     }
   }
@@ -124,10 +169,29 @@ struct RadianceVisitor {
 // Direct-light strategies of the forward renderer.
 struct NeeMisDirect {
   const Scene& scene;
+  const float* lightPmf = nullptr;  // per-pixel selection (WalkSettings::lightPmf), or the scene's
   bool operator()(const ShadingPoint& sp, int, Sampler& sampler, PathContext* ctx, DirectPath& out) const {
-    return sampleDirectNee(scene, sp, sampler, ctx, out);
+    return sampleDirectNee(scene, sp, sampler, ctx, out, lightPmf);
   }
 };
+
+// The light-selection pmf of pixel (x, y) of `view` when the scene has a per-pixel logit map for
+// it (written into `pmf`, which is returned), else null (the scene's selection applies).
+inline const float* pixelLightPmf(const Scene& scene, int view, int x, int y, std::vector<float>& pmf, int* cell = nullptr) {
+  if (size_t(view) >= scene.sampling.pixelLogits.size() || scene.sampling.pixelLogits[size_t(view)].empty()) return nullptr;
+  const auto& map = scene.sampling.pixelLogits[size_t(view)];
+  const size_t n = scene.lights.size();
+  const int c = (y * map.height / scene.height) * map.width + x * map.width / scene.width;
+  if (cell) *cell = c;
+  pmf.resize(n);
+  const float* logits = map.logits.data() + size_t(c) * n;
+  float top = logits[0];
+  for (size_t i = 1; i < n; ++i) top = std::max(top, logits[i]);
+  double sum = 0;
+  for (size_t i = 0; i < n; ++i) sum += (pmf[i] = std::exp(logits[i] - top));
+  for (size_t i = 0; i < n; ++i) pmf[i] = float(double(pmf[i]) / sum);
+  return pmf.data();
+}
 
 struct RisDirect {
   const Scene& scene;

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "core/lights/light_selection.h"
 
 namespace invr {
 
@@ -33,12 +34,13 @@ void Scene::finalize(bool accelerate) {
 
 void Scene::updateLightSelection() {
   infiniteLights_.clear();
-  std::vector<float> power(lights.size());
+  power_.assign(lights.size(), 0.f);
+  powerTotal_ = 0;
   for (size_t i = 0; i < lights.size(); ++i) {
     if (lights[i].isInfinite()) infiniteLights_.push_back(uint32_t(i));
-    power[i] = std::max(lightPower(lights[i], radius), 0.f);
+    powerTotal_ += (power_[i] = std::max(lightPower(lights[i], radius), 0.f));
   }
-  lightSelect_ = Distribution1D(power);
+  lightSelect_ = selectsByPower() ? Distribution1D(power_) : Distribution1D(softmax(sampling.lightLogits));
 }
 
 void Scene::computeFaceNormals(uint32_t mesh) {

@@ -31,6 +31,24 @@ inline Vec3 offsetOrigin(Vec3 p, Vec3 ng, Vec3 d) {
   return p + ng * (dot(ng, d) >= 0.f ? eps : -eps);
 }
 
+// How the renderer samples, when a job sets it (sampling parameters, Yan et al. 2024): none of it
+// changes what a render converges to, only its noise. Empty members keep the default rules.
+struct SamplingState {
+  // One logit per light: next-event estimation picks light i with softmax(logits)_i. Empty: by power.
+  std::vector<float> lightLogits;
+  // Russian-roulette survival probability of bounce k = 1, 2, ... (the last value repeats for deeper
+  // bounces). Empty: survival by path throughput after RenderOptions' russianRouletteDepth.
+  std::vector<float> survival;
+  // Per view: light-selection logits per cell of a width x height map over the film
+  // (cell-major, lights fastest). A view without a map uses the global rule.
+  struct PixelLogits {
+    int width = 0, height = 0;
+    std::vector<float> logits;
+    bool empty() const { return logits.empty(); }
+  };
+  std::vector<PixelLogits> pixelLogits;
+};
+
 class Scene {
  public:
   std::string name;
@@ -42,6 +60,7 @@ class Scene {
   std::vector<Light> lights;
   std::vector<Camera> cameras;
   int width = 256, height = 256;
+  SamplingState sampling;
 
   Vec3 boundsMin{0.f}, boundsMax{0.f};
   float radius = 1.f;
@@ -84,6 +103,10 @@ class Scene {
   }
 
   const Distribution1D& lightSelection() const { return lightSelect_; }
+  // Whether selection is by power (no light logits), and each light's power under that rule.
+  bool selectsByPower() const { return sampling.lightLogits.size() != lights.size(); }
+  float selectionPower(size_t light) const { return power_[light]; }
+  double selectionPowerTotal() const { return powerTotal_; }
   const std::vector<uint32_t>& infiniteLights() const { return infiniteLights_; }
 
   EmbreeScene accel;
@@ -92,6 +115,8 @@ class Scene {
   void computeFaceNormals(uint32_t mesh);
 
   Distribution1D lightSelect_;
+  std::vector<float> power_;
+  double powerTotal_ = 0;
   std::vector<uint32_t> infiniteLights_;
   std::vector<std::vector<Vec3>> faceNormals_;
   uint64_t geometryVersion_ = 0;

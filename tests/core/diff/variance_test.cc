@@ -1,0 +1,224 @@
+// Variance and its derivatives (Yan et al. 2024) against independent references:
+//   - two point lights chosen with probability p (softmax of two logits): per jitter u the
+//     estimator's second moment is a(u)^2 / p + b(u)^2 / (1 - p), so
+//       V = M_a / p + M_b / (1 - p) - (A + B)^2,  dV/dz_a = p (1 - p) (-M_a / p^2 + M_b / (1 - p)^2),
+//     with A = E[a], M_a = E[a^2] over the pixel (measured by tracing each light alone: logits
+//     +-20 make one light certain). Through the whole engine (variance pass, primal render as I1).
+//     The detached baseline gives exactly 0 for any logit: the known bias.
+//   - a rough conductor's roughness, which enters both the BSDF and its sampling density: the
+//     second moment's derivative against central differences of E[F^2] with sampling re-derived
+//     at alpha +- h and common random numbers (h checked against h/2). The detached estimator
+//     must miss it.
+// Tolerances: |mean - ref| <= 4 combined SE, and 4 SE must be under 10 % of the reference.
+#include "core/diff/variance_visitor.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "core/diff/gradient_engine.h"
+#include "core/diff/interior_estimator.h"
+#include "test_util.h"
+
+namespace invr {
+namespace {
+
+// A diffuse floor seen from above, lit by two point lights of different strength and distance.
+// 4x4 pixels.
+constexpr const char* kTwoLights = R"({
+  "materials": [{"name": "floor", "diffuse": {"albedo": {"value": 0.6}}}],
+  "shapes": [{"name": "floor", "material": "floor", "quad": {}, "transform": {"scale": {"x": 2, "y": 2, "z": 1}}}],
+  "lights": [
+    {"name": "a", "point": {"position": {"x": -0.6, "z": 1.0}, "intensity": {"r": 1.0, "g": 1.2, "b": 0.8}}},
+    {"name": "b", "point": {"position": {"x": 1.2, "y": 0.5, "z": 2.5}, "intensity": {"r": 3.0, "g": 2.0, "b": 2.5}}}
+  ],
+  "views": [{"eye": {"z": 3}, "target": {}, "fov_y_degrees": 40}],
+  "film": {"width": 4, "height": 4}
+})";
+
+// One camera sample of pixel (x, y) through `estimator`, as the pass driver traces it.
+Rgb traceSample(const Scene& scene, const InteriorEstimator& est, int x, int y, uint64_t seed, uint64_t sample, const VarianceWeights* w,
+                PathGradient* grad) {
+  const uint64_t pixel = uint64_t(y) * uint64_t(scene.width) + uint64_t(x);
+  Sampler sampler(RngKey::withSample(RngKey{seed, 0, 0, pixel, 0}.pixelHash(), sample));
+  CameraSampleInput in;
+  in.x = x;
+  in.y = y;
+  in.pixel = pixel;
+  in.o = scene.cameras[0].eye;
+  in.d = scene.cameras[0].direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), scene.width, scene.height);
+  SampleCounters counters;
+  if (w) return est.varianceSample(in, sampler, counters, *w, *grad);
+  return est.sample(in, sampler, counters, Rgb(0.f), nullptr, nullptr);
+}
+
+double sumEntries(const PathGradient& g, uint32_t index) {
+  double s = 0;
+  for (const auto& e : g.entries())
+    if (e.first == index) s += e.second;
+  return s;
+}
+
+TEST(Variance, TwoLightSelectionMatchesTheClosedForm) {
+  auto scene = test::sceneFromJson(kTwoLights);
+  ParameterRegistry reg;
+  reg.add(*scene, "sampling/light_logits");
+  GradientOptions o;
+  o.method = GradientMethod::Pt;
+  o.maxDepth = 1;
+  const int W = scene->width, H = scene->height, N = W * H;
+
+  // Moments of each light alone, per pixel and channel, over the pixel's jitter (common jitter).
+  std::vector<double> A(size_t(N) * 3), B(A.size()), Ma(A.size()), Mb(A.size());
+  const int kJitter = 4096;
+  for (int which = 0; which < 2; ++which) {
+    reg.write(which == 0 ? std::vector<float>{20.f, -20.f} : std::vector<float>{-20.f, 20.f}, *scene);
+    ASSERT_EQ(scene->lightSelection().pmf(size_t(which)), 1.f);
+    auto est = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        for (int s = 0; s < kJitter; ++s) {
+          Rgb v = traceSample(*scene, *est, x, y, 7, uint64_t(s), nullptr, nullptr);
+          for (int c = 0; c < 3; ++c) {
+            size_t i = size_t(y * W + x) * 3 + size_t(c);
+            (which == 0 ? A : B)[i] += double(v[c]) / kJitter;
+            (which == 0 ? Ma : Mb)[i] += double(v[c]) * v[c] / kJitter;
+          }
+        }
+  }
+  const double p = 0.3;
+  reg.write({float(std::log(p)), float(std::log(1 - p))}, *scene);
+  double V = 0, dV = 0;
+  for (size_t i = 0; i < A.size(); ++i) {
+    V += Ma[i] / p + Mb[i] / (1 - p) - (A[i] + B[i]) * (A[i] + B[i]);
+    dV += p * (1 - p) * (-Ma[i] / (p * p) + Mb[i] / ((1 - p) * (1 - p)));
+  }
+  // The engine's variance term is (weight / K) * mean over pixels and channels.
+  const double norm = 1.0 / (3.0 * N);
+  Image target(W, H, 3);
+  for (bool detached : {false, true}) {
+    o.variance.enabled = true;
+    o.variance.detached = detached;
+    o.variance.spp = 4;
+    o.sppPrimal = 4;
+    GradientEngine engine(*scene, reg, {target}, o);
+    test::MeanSE grad, term;
+    for (int i = 0; i < 400; ++i) {
+      EngineSession session;
+      GradientRequest r;
+      r.views = {0};
+      r.seed = 100 + uint64_t(i);
+      GradientResult g = engine.evaluate(r, session);
+      grad.add(g.gradient[0]);
+      term.add(g.stats.varianceTerm);
+      EXPECT_NEAR(g.gradient[0], -g.gradient[1], 1e-6 * (1 + std::abs(g.gradient[0]))) << "softmax: the two logits' derivatives cancel";
+    }
+    std::printf("%s: dV/dz_a %+.5e (se %.1e), closed form %+.5e; V %.5e (se %.1e), closed form %.5e\n", detached ? "detached" : "unbiased",
+                grad.mean, grad.se(), dV * norm, term.mean, term.se(), V * norm);
+    EXPECT_NEAR(term.mean, V * norm, test::kSigmas * term.se()) << "the variance estimate";
+    EXPECT_LT(test::kSigmas * term.se(), 0.1 * V * norm);
+    if (detached) {
+      EXPECT_EQ(grad.mean, 0.0) << "the detached baseline never sees a sampling probability";
+      EXPECT_GT(std::abs(dV * norm), 0.0);
+    } else {
+      EXPECT_NEAR(grad.mean, dV * norm, test::kSigmas * grad.se());
+      EXPECT_LT(test::kSigmas * grad.se(), 0.1 * std::abs(dV * norm)) << "the comparison has no power";
+    }
+  }
+}
+
+// A rough metal plate under a small area light and a dim sky: roughness enters f and its
+// sampling density (BSDF sampling with MIS against the light).
+constexpr const char* kGlossy = R"({
+  "materials": [
+    {"name": "metal", "rough_conductor": {"roughness": {"value": 0.3}}},
+    {"name": "lamp", "diffuse": {"albedo": {"value": 0.5}}}
+  ],
+  "shapes": [
+    {"name": "plate", "material": "metal", "quad": {}, "transform": {"scale": {"x": 2, "y": 2, "z": 1}}},
+    {"name": "lamp", "material": "lamp", "quad": {},
+     "transform": {"scale": {"x": 0.3, "y": 0.3, "z": 1}, "rotate_xyz_degrees": {"x": 180}, "translate": {"x": -0.4, "z": 1.2}}}
+  ],
+  "lights": [
+    {"name": "lamp", "area": {"shape": "lamp", "radiance": {"r": 10, "g": 9, "b": 8}}},
+    {"name": "sky", "constant_environment": {"radiance": {"r": 0.2, "g": 0.2, "b": 0.25}}}
+  ],
+  "views": [{"eye": {"x": 0.6, "y": 0.2, "z": 3}, "target": {}, "fov_y_degrees": 35}],
+  "film": {"width": 4, "height": 4}
+})";
+
+TEST(Variance, RoughnessSecondMomentMatchesFiniteDifferences) {
+  auto scene = test::sceneFromJson(kGlossy);
+  ParameterRegistry reg;
+  reg.add(*scene, "materials/metal/roughness");
+  GradientOptions o;
+  o.method = GradientMethod::Pt;
+  o.maxDepth = 1;
+  const int W = scene->width, H = scene->height;
+  const float alpha = 0.3f;
+  const int kSamples = 1 << 16;
+  // E[F^2] summed over pixels and channels at alpha (+ d), common random numbers.
+  auto differences = [&](float a, test::MeanSE* fdOut, float h) {
+    reg.write({a + h}, *scene);
+    auto plus = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
+    std::vector<double> fp(static_cast<size_t>(kSamples));
+    for (int s = 0; s < kSamples; ++s) {
+      double sum = 0;
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          Rgb v = traceSample(*scene, *plus, x, y, 11, uint64_t(s), nullptr, nullptr);
+          sum += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
+        }
+      fp[size_t(s)] = sum;
+    }
+    reg.write({a - h}, *scene);
+    auto minus = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
+    for (int s = 0; s < kSamples; ++s) {
+      double sum = 0;
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          Rgb v = traceSample(*scene, *minus, x, y, 11, uint64_t(s), nullptr, nullptr);
+          sum += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
+        }
+      fdOut->add((fp[size_t(s)] - sum) / (2.0 * h));
+    }
+  };
+  test::MeanSE fd, fdHalf;
+  differences(alpha, &fd, 0.02f);
+  differences(alpha, &fdHalf, 0.01f);
+  std::printf("finite differences of E[F^2]: h 0.02 %+.5e (se %.1e), h 0.01 %+.5e (se %.1e)\n", fd.mean, fd.se(), fdHalf.mean, fdHalf.se());
+  EXPECT_NEAR(fd.mean, fdHalf.mean, test::kSigmas * std::hypot(fd.se(), fdHalf.se())) << "h is not small enough";
+
+  reg.write({alpha}, *scene);
+  auto est = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
+  // Mean 0 and adjoint 1: dV^ = 2 F dF + F^2 S, the second moment's derivative.
+  for (bool detached : {false, true}) {
+    VarianceWeights w;
+    w.adjoint = Rgb(1.f);
+    w.detached = detached;
+    test::MeanSE d;
+    PathGradient g;
+    for (int s = 0; s < kSamples; ++s) {
+      double sum = 0;
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          g.clear();
+          traceSample(*scene, *est, x, y, 23, uint64_t(s), &w, &g);
+          sum += sumEntries(g, 0);
+        }
+      d.add(sum);
+    }
+    const double se = std::hypot(d.se(), fdHalf.se());
+    std::printf("%s: dE[F^2]/dalpha %+.5e (se %.1e) against %+.5e: %.1f combined SE apart\n", detached ? "detached" : "unbiased", d.mean, d.se(),
+                fdHalf.mean, std::abs(d.mean - fdHalf.mean) / se);
+    if (detached) {
+      EXPECT_GT(std::abs(d.mean - fdHalf.mean), 6 * se) << "the detached baseline should be biased here";
+    } else {
+      EXPECT_NEAR(d.mean, fdHalf.mean, test::kSigmas * se);
+      EXPECT_LT(test::kSigmas * se, 0.1 * std::abs(fdHalf.mean)) << "the comparison has no power";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace invr
