@@ -37,6 +37,31 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   Problem p;
   p.scene = buildJobScene(job, assets, use);
   if (o.parameters_size() == 0) fail("parameters", "list at least one parameter to recover");
+  // Russian roulette: by throughput (default) or fixed survival per bounce.
+  {
+    const auto& r = job.render();
+    bool namesSurvival = false;
+    for (const auto& ps : o.parameters()) namesSurvival = namesSurvival || ps.name() == "sampling/rr_survival";
+    const std::string mode = r.russian_roulette().empty() ? (namesSurvival ? "fixed" : "throughput") : r.russian_roulette();
+    if (mode != "throughput" && mode != "fixed")
+      throw InputError("render.russian_roulette: unknown mode '" + mode + "' (use throughput or fixed)");
+    if (mode == "throughput" && r.survival_size() > 0) throw InputError("render.survival: needs render.russian_roulette \"fixed\"");
+    if (mode == "throughput" && namesSurvival)
+      throw InputError("render.russian_roulette: sampling/rr_survival needs \"fixed\" survival (or leave the mode unset)");
+    if (mode == "fixed") {
+      const int bounces = std::max(1, o.max_depth());
+      if (r.survival_size() > bounces)
+        throw InputError("render.survival: " + std::to_string(r.survival_size()) + " values for " + std::to_string(bounces) + " bounces (max_depth)");
+      std::vector<float> q(size_t(bounces), 1.f);
+      for (int k = 0; k < bounces; ++k) {
+        if (r.survival_size() == 0) break;
+        double v = r.survival(std::min(k, r.survival_size() - 1));
+        if (!(v > 0 && v <= 1)) throw InputError("render.survival[" + std::to_string(std::min(k, r.survival_size() - 1)) + "]: must be in (0, 1]");
+        q[size_t(k)] = float(v);
+      }
+      p.scene->sampling.survival = std::move(q);
+    }
+  }
   for (int i = 0; i < o.parameters_size(); ++i) {
     const auto& ps = o.parameters(i);
     std::string field = "parameters[" + std::to_string(i) + "]";
@@ -48,6 +73,13 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     if (ps.has_learning_rate()) po.learningRate = finite("learning_rate", ps.learning_rate());
     if (ps.has_lower()) po.lower = finite("lower", ps.lower());
     if (ps.has_upper()) po.upper = finite("upper", ps.upper());
+    if (ps.map_resolution_size() > 0) {
+      if (ps.name().rfind("sampling/pixel_light_logits/", 0) != 0) fail(field + ".map_resolution", "only for sampling/pixel_light_logits/<view>");
+      if (ps.map_resolution_size() != 2) fail(field + ".map_resolution", "needs [width, height]");
+      po.mapWidth = ps.map_resolution(0);
+      po.mapHeight = ps.map_resolution(1);
+      if (po.mapWidth <= 0 || po.mapHeight <= 0) fail(field + ".map_resolution", "must be positive");
+    }
     try {
       p.params.add(*p.scene, ps.name(), po);
     } catch (const InputError& e) {
@@ -186,6 +218,25 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       p.givenTargets.push_back(std::move(im));
     }
   }
+  if (o.has_variance()) {
+    const auto& v = o.variance();
+    VarianceOptions& vo = p.gradient.variance;
+    vo.enabled = true;
+    if (v.has_weight() && !(std::isfinite(v.weight()) && v.weight() >= 0)) fail("variance.weight", "must be a finite number >= 0");
+    vo.weight = v.has_weight() ? v.weight() : 1.0;
+    if (!(std::isfinite(v.samples()) && v.samples() >= 0)) fail("variance.samples", "must be a positive number (K, samples per pixel)");
+    vo.samples = v.samples() > 0 ? v.samples() : 1.0;
+    if (v.estimator() != "" && v.estimator() != "unbiased" && v.estimator() != "detached")
+      fail("variance.estimator", "unknown estimator '" + v.estimator() + "' (use unbiased or detached)");
+    vo.detached = v.estimator() == "detached";
+    vo.spp = positive("variance.spp", v.spp(), 1, 4096);
+    if (p.gradient.method != GradientMethod::Pt)
+      fail("variance", "needs method METHOD_PT: RIS and ReSTIR resampling have no variance derivatives yet");
+    if (p.gradient.pixels.sampler != PixelSampler::All && p.gradient.pixels.sampler != PixelSampler::Uniform)
+      fail("variance", "works with pixel_sampler all or uniform only");
+  }
+  if (p.params.hasSamplingParameters() && p.gradient.method != GradientMethod::Pt)
+    fail("parameters", "sampling parameters (sampling/...) need method METHOD_PT");
   if (o.target_masks_size() > 0) {
     if (o.targets_size() == 0) fail("target_masks", "masks need targets (rendered targets have nothing to mask)");
     if (o.target_masks_size() != o.targets_size())

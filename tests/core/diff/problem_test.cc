@@ -52,6 +52,34 @@ TEST(Problem, JobMistakesNameTheField) {
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial": 0.3}]})"), "");
 }
 
+TEST(Problem, VarianceJobsNameTheirMistakes) {
+  const std::string albedo = R"("parameters": [{"name": "materials/red/albedo"}])";
+  EXPECT_MENTIONS(errorOf("{" + albedo + R"(, "variance": {}})"), "optimization.variance: needs method METHOD_PT");
+  EXPECT_MENTIONS(errorOf("{" + albedo + R"(, "method": "METHOD_PT", "variance": {"estimator": "biased"}})"), "optimization.variance.estimator");
+  EXPECT_MENTIONS(errorOf("{" + albedo + R"(, "method": "METHOD_PT", "variance": {"samples": -4}})"), "optimization.variance.samples");
+  EXPECT_MENTIONS(errorOf("{" + albedo + R"(, "method": "METHOD_PT", "variance": {"weight": -1}})"), "optimization.variance.weight");
+  EXPECT_MENTIONS(errorOf("{" + albedo + R"(, "method": "METHOD_PT", "pixel_sampler": "adaptive", "variance": {}})"), "pixel_sampler all or uniform");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "sampling/rr_survival"}], "method": "METHOD_RIS"})"), "need method METHOD_PT");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "sampling/guess"}], "method": "METHOD_PT"})"), "sampling/light_logits");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "sampling/pixel_light_logits/0"}], "method": "METHOD_PT"})"), "at least two lights");
+  EXPECT_EQ(errorOf("{" + albedo + R"(, "method": "METHOD_PT", "variance": {"samples": 16, "spp": 2}})"), "");
+
+  // Naming the survival parameter selects fixed survival: one value per bounce, 1 by default.
+  auto job = parseJobJson(R"({"zoo": "cornell", "render": {"survival": [1, 0.8]}, "optimization": {"method": "METHOD_PT", "max_depth": 4,
+    "parameters": [{"name": "sampling/rr_survival"}]}})", "job.json");
+  Problem p = buildProblem(job);
+  EXPECT_EQ(p.scene->sampling.survival, (std::vector<float>{1.f, 0.8f, 0.8f, 0.8f}));
+  EXPECT_EQ(p.params.size(), 4u);
+  auto bad = parseJobJson(R"({"zoo": "cornell", "render": {"russian_roulette": "throughput"}, "optimization": {"method": "METHOD_PT",
+    "max_depth": 4, "parameters": [{"name": "sampling/rr_survival"}]}})", "job.json");
+  try {
+    buildProblem(bad);
+    ADD_FAILURE() << "throughput roulette with the survival parameter was accepted";
+  } catch (const InputError& e) {
+    EXPECT_MENTIONS(std::string(e.what()), "render.russian_roulette");
+  }
+}
+
 // A parameter at 0 changes which light samples ReSTIR's reused reservoirs could have produced:
 // the default bounds keep albedos and intensities above 0, and an explicit 0 with ReSTIR is refused
 // (other methods accept it). The scene's own values start inside the bounds.
