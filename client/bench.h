@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "client/bench_report.h"
 
@@ -42,5 +43,25 @@ struct PixelBenchArgs {
   bool json = false;
 };
 BenchReport benchPixelVariance(const PixelBenchArgs& args);
+
+// Variance-aware rendering (Yan et al. 2024) on the zoo's rings, spot and roulette jobs: one report
+// per scene (client/bench_variance.cc says what each measures).
+struct VarianceBenchArgs {
+  std::string scene = "all";
+  double seconds = 20;        // rings: per estimator at equal time
+  int fdReps = 400;           // rings: central-difference evaluations of the reference
+  int fdSpp = 4;              // rings: spp of each render in the reference
+  double fdStep = 0.02;       // rings: h (checked against h/2)
+  std::vector<int> ksweep = {1, 4, 16, 64};
+  int ksweepSteps = 0;        // 0: the job's
+  int spotSteps = 0, rouletteSteps = 0;  // 0: the jobs'
+  int measureSpp = 64;        // spp of the variance measurements (Bessel per pixel)
+  int oracleCells = 8, oracleSpp = 256;
+  int overheadSteps = 9;
+  uint64_t seed = 11;
+  bool json = false;
+};
+std::vector<BenchReport> benchVariance(const VarianceBenchArgs& args);
+VarianceBenchArgs quickVarianceBenchArgs();  // the smoke-test settings of --quick
 
 }  // namespace invr::cli

@@ -114,6 +114,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   addBenchGradientCommands(*bench, exitCode);
   addBenchServiceCommand(*bench, exitCode);
   addBenchPixelCommand(*bench, exitCode);
+  addBenchVarianceCommand(*bench, exitCode);
 }
 
 }  // namespace invr::cli

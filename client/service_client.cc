@@ -219,6 +219,10 @@ std::string describeEvent(const v1::ProgressEvent& e) {
     std::snprintf(buf, sizeof buf, "step %llu/%llu  loss %.6g%s  %.1f s  %.2f steps/s  eta %.0f s", (unsigned long long)s.step(),
                   (unsigned long long)s.steps(), s.loss(), err.c_str(), s.seconds(), s.steps_per_second(), s.eta_seconds());
     std::string out = buf;
+    if (s.variance_term() != 0 || s.cost() != 0) {
+      std::snprintf(buf, sizeof buf, "  (bias %.6g + variance %.6g, cost %.3g rays/sample)", s.bias_term(), s.variance_term(), s.cost());
+      out += buf;
+    }
     if (s.non_finite()) out += "  non-finite " + std::to_string(s.non_finite());
     return out;
   }

@@ -1124,11 +1124,15 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           g.stats.secondsDerivative = r->seconds_derivative();
           g.stats.secondsReservoirUpdate = r->seconds_reservoir();
           g.stats.secondsStage1 = r->seconds_stage1();
+          g.stats.biasTerm = r->bias_term();
+          g.stats.varianceTerm = r->variance_term();
+          g.stats.cost = r->cost();
+          g.stats.secondsVariance = r->seconds_variance();
           g.stats.reservoirs = r->reservoirs();
           g.stats.meanM = r->mean_m();
           g.stats.meanNeighbours = r->mean_neighbours();
           slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session() +
-                                          r->seconds_stage1());
+                                          r->seconds_stage1() + r->seconds_variance());
           out[s] = std::move(g);
         }
         return out;
@@ -1170,6 +1174,12 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
         sp.set_derivative_seconds(st.secondsDerivative);
         sp.set_reservoir_seconds(st.secondsReservoirUpdate);
         sp.set_stage1_seconds(st.secondsStage1);
+        if (p.gradient.variance.enabled) {
+          sp.set_bias_term(st.biasTerm);
+          sp.set_variance_term(st.varianceTerm);
+          sp.set_cost(st.cost);
+          sp.set_variance_seconds(st.secondsVariance);
+        }
         sp.set_reservoirs(st.reservoirs);
         sp.set_mean_m(st.meanM);
         sp.set_mean_neighbours(st.meanNeighbours);
@@ -1292,7 +1302,18 @@ struct Server::Impl final : v1::InvrService::CallbackService, v1::WorkerService:
           files.push_back(stem + ext);
         }
       }
+      // Variance-aware jobs: the per-pixel variance of one sample, as the job now samples.
+      for (int k = 0; k < r.variances_size() && k < nv; ++k) {
+        const v1::FloatImage& fi = r.variances(k);
+        Image im(fi.width(), fi.height(), fi.channels());
+        if (size_t(fi.pixels_size()) != im.data().size()) continue;
+        std::copy(fi.pixels().begin(), fi.pixels().end(), im.data().begin());
+        std::string name = "variance_view" + std::to_string(tasks[s]->views(k)) + ".exr";
+        writeImage(dir / name, im);
+        files.push_back(name);
+      }
     }
+    for (auto& f : writeSelectionResults(dir, p.params, *p.scene, theta)) files.push_back(f);
     std::lock_guard<std::mutex> lk(mu);
     JobEntry& j = jobTable.at(run.id);
     copyLogLocked(run.id, files);

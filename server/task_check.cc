@@ -21,17 +21,21 @@ std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const
   if (!r.error().empty()) return "";  // a failed task: its error is reported, nothing else is read
   if (r.spec_unknown()) return "";    // the spec is sent again; nothing else is read
   if (r.input_error()) return "input_error set without an error text";
-  for (double s : {r.seconds_primal(), r.seconds_derivative(), r.seconds_reservoir(), r.seconds_session(), r.seconds_stage1()})
+  for (double s : {r.seconds_primal(), r.seconds_derivative(), r.seconds_reservoir(), r.seconds_session(), r.seconds_stage1(), r.seconds_variance()})
     if (!finiteNonNegative(s)) return "a timing is negative or not finite";
   if (!std::isfinite(r.mean_m()) || !std::isfinite(r.mean_neighbours())) return "reservoir statistics are not finite";
+  if (!finiteNonNegative(r.cost())) return "the render cost is negative or not finite";
   if (task.kind() == v1::Task::FINAL_RENDER) {
     if (r.gradient_size() != 0) return "a final render carries a gradient";
     const int expected = 2 * task.views_size();  // each view's render, then its target
     if (r.renders_size() != expected)
       return std::to_string(r.renders_size()) + " images for " + std::to_string(task.views_size()) + " view(s) (expected " +
              std::to_string(expected) + ")";
-    for (int k = 0; k < r.renders_size(); ++k) {
-      const v1::FloatImage& im = r.renders(k);
+    // Variance-aware jobs add one variance map per view.
+    if (r.variances_size() != 0 && r.variances_size() != task.views_size())
+      return std::to_string(r.variances_size()) + " variance maps for " + std::to_string(task.views_size()) + " view(s)";
+    for (int k = 0; k < r.renders_size() + r.variances_size(); ++k) {
+      const v1::FloatImage& im = k < r.renders_size() ? r.renders(k) : r.variances(k - r.renders_size());
       if (im.width() != shape.width || im.height() != shape.height)
         return "image " + std::to_string(k) + " is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) + ", the film is " +
                std::to_string(shape.width) + "x" + std::to_string(shape.height);
@@ -47,7 +51,7 @@ std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const
   // Render-only (burn-in) steps may return no gradient; every other step one value per parameter.
   if (size_t(r.gradient_size()) != shape.parameters && !(task.render_only() && r.gradient_size() == 0))
     return "gradient has " + std::to_string(r.gradient_size()) + " values, the job has " + std::to_string(shape.parameters) + " parameters";
-  if (r.renders_size() != 0) return "a gradient result carries images";
+  if (r.renders_size() != 0 || r.variances_size() != 0) return "a gradient result carries images";
   // A non-finite gradient or loss is not malformed: it is how divergence shows, and the step
   // loop's divergence check fails the job naming the parameter.
   return "";

@@ -319,6 +319,8 @@ class Worker {
         ro.cancel = &cancel_;
         for (int v : t.views()) toProto(renderView(*p.scene, v, ro).image, res.add_renders());
         for (int v : t.views()) toProto(s.targets.at(size_t(v)), res.add_renders());
+        if (p.gradient.variance.enabled)
+          for (int v : t.views()) toProto(s.engine->sampleVarianceMap(v, std::max(2, t.final_spp()), p.seed, &cancel_), res.add_variances());
         return out;
       }
       GradientRequest r;
@@ -337,6 +339,10 @@ class Worker {
       res.set_seconds_derivative(g.stats.secondsDerivative);
       res.set_seconds_reservoir(g.stats.secondsReservoirUpdate);
       res.set_seconds_stage1(g.stats.secondsStage1);
+      res.set_bias_term(g.stats.biasTerm);
+      res.set_variance_term(g.stats.varianceTerm);
+      res.set_cost(g.stats.cost);
+      res.set_seconds_variance(g.stats.secondsVariance);
       res.set_non_finite(g.stats.nonFiniteSamples);
       res.set_reservoirs(g.stats.reservoirs);
       res.set_mean_m(g.stats.meanM);

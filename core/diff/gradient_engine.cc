@@ -8,6 +8,7 @@
 #include <chrono>
 
 #include "core/diff/pass_driver.h"
+#include "core/diff/render_cost.h"
 #include "core/error.h"
 #include "core/render/path_walk.h"
 #include "core/render/renderer.h"
@@ -197,6 +198,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   // Derivative pass: fresh paths weighted by dL/dI (or, during burn-in, only the reservoirs). Its
   // images are the second, independent render of the unbiased loss.
   t0 = std::chrono::steady_clock::now();
+  std::vector<RenderCost> costs(req.views.size());  // variance-aware jobs: per view, from this pass's ray counts
   if (!req.renderOnly || restirDerivative) {
     if (restirDerivative) {
       newDerivative = session.derivative.takeRecycled();
@@ -219,6 +221,9 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       spec.cancel = req.cancel;
       PassOutput pr = runPass(scene_, *estimator, spec, *scratch_, req.renderOnly ? nullptr : &out.gradient);
       addCounters(pr, nullptr);
+      // The cost comes from this pass: it is independent of both the primal render (the variance's
+      // I1) and the variance pass, so t * V and its derivative stay unbiased.
+      if (opt_.variance.enabled) costs[k] = renderCostByDepth(pr.rays, scene_.sampling.survival);
       if (!req.renderOnly) {
         double l = unbiasedImageLoss(opt_.loss, out.renders[k], pr.image, targets_[size_t(view)], batchViews, weightsOf(k));
         st.viewLoss.push_back(l * double(batchViews));
@@ -233,11 +238,14 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   // independent estimate of its pixel's mean (Eq. 18).
   t0 = std::chrono::steady_clock::now();
   if (opt_.variance.enabled && !req.renderOnly) {
-    const double coef = opt_.variance.weight / opt_.variance.samples;
+    const bool timeAware = opt_.variance.cost == VarianceCost::Depth;
     const double norm = 1.0 / (double(pixels) * 3.0 * double(batchViews));
     for (size_t k = 0; k < req.views.size(); ++k) {
       checkCancel();
       const int view = req.views[k];
+      st.cost += costs[k].raysPerSample / double(batchViews);
+      // L = L_bias + coef * V: coef = lambda / K, or lambda* t (Eq. 33).
+      const double coef = timeAware ? opt_.variance.weight * costs[k].raysPerSample : opt_.variance.weight / opt_.variance.samples;
       const std::vector<float>* weights = weightsOf(k);
       Image adjointV(scene_.width, scene_.height, 3);
       for (size_t j = 0; j < pixels; ++j) {
@@ -272,6 +280,10 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       }
       const double term = coef * sum * norm;
       st.varianceTerm += term;
+      // Eq. 35's other half, lambda* V dt/dq: survival changes the cost (Eq. 36).
+      if (timeAware && params_.survivalOffset() >= 0)
+        for (size_t i = 0; i < costs[k].dSurvival.size(); ++i)
+          out.gradient[size_t(params_.survivalOffset()) + i] += opt_.variance.weight * sum * norm * costs[k].dSurvival[i];
       if (k < st.viewLoss.size()) st.viewLoss[k] += term * double(batchViews);
       out.variances.push_back(std::move(var));
     }
@@ -366,6 +378,27 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   }
   st.nonFiniteSamples = st.drops.total();
   return out;
+}
+
+Image GradientEngine::sampleVarianceMap(int view, int spp, uint64_t seed, const std::atomic<bool>* cancel) {
+  if (view < 0 || size_t(view) >= scene_.cameras.size()) throw InputError("variance map: view " + std::to_string(view) + " out of range");
+  if (spp < 2) throw InputError("variance map: needs at least 2 samples per pixel");
+  auto estimator = estimatorFor(opt_, {scene_, params_, opt_, view, spp, nullptr}, false);
+  PassSpec spec;
+  spec.kind = PassKind::Primal;
+  spec.squares = true;
+  spec.view = view;
+  spec.stream = streamSeed(seed, Stream::VarianceMap);
+  spec.spp = spp;
+  spec.cancel = cancel;
+  PassOutput pr = runPass(scene_, *estimator, spec, *scratch_);
+  Image var(scene_.width, scene_.height, 3);
+  const double bessel = double(spp) / double(spp - 1);
+  for (size_t i = 0; i < var.data().size(); ++i) {
+    const double m = double(pr.image.data()[i]);
+    var.data()[i] = float(std::max(0.0, (double(pr.secondMoment.data()[i]) - m * m) * bessel));
+  }
+  return var;
 }
 
 Stage1 GradientEngine::measureStage1(int view, const GradientRequest& request) {

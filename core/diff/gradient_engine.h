@@ -51,6 +51,9 @@ struct GradientStats {
   // Variance-aware jobs: loss = biasTerm + varianceTerm, varianceTerm = (weight / K) * V with V the
   // unbiased per-pixel variance estimate (mean over pixels and channels; variance pass).
   double biasTerm = 0.0, varianceTerm = 0.0;
+  // Variance-aware jobs: the render cost t in rays per camera sample (Eq. 36, calibrated from the
+  // derivative pass's ray counts), as a mean over the batch's views (shards add up).
+  double cost = 0.0;
   double secondsVariance = 0;
   double secondsPrimal = 0, secondsDerivative = 0, secondsReservoirUpdate = 0;
   double secondsStage1 = 0;   // pixel-sampling maps (when refreshed this step)
@@ -90,6 +93,10 @@ class GradientEngine {
   const GradientOptions& options() const { return opt_; }
   // Stage 1 of pixel sampling for one view, on its own (benchmarks build reference maps from many).
   Stage1 measureStage1(int view, const GradientRequest& request);
+  // The per-pixel variance of one camera sample of the job's estimator at the current parameters
+  // (sampling parameters included), from `spp` >= 2 independent samples per pixel with Bessel's
+  // correction (Yan et al. 2024, Eq. 9). A result map of variance-aware jobs.
+  Image sampleVarianceMap(int view, int spp, uint64_t seed, const std::atomic<bool>* cancel = nullptr);
 
  private:
   Stage1 runStage1(int view, const GradientRequest& req, SampleDrops& drops);

@@ -24,6 +24,9 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
     w.reservoirs = double(maxShard) * pixels * double(g.sppPrimal + (g.forwardOnly ? 0 : g.sppGradient)) *
                    double(sizeof(StoredReservoir) + 24) * 2;  // current and previous chain, kd-tree
   w.gradients = double(p.params.size()) * 8 * double(threads + 2);
+  // Per view: dL/dV, the pass's mean and second moment, the variance map (RGB floats each); per
+  // thread: one walk's decision records (variance_visitor.h), at most a few hundred bytes per vertex.
+  if (g.variance.enabled) w.variance = double(maxShard) * pixels * 12 * 4 + double(threads) * double(g.maxDepth + 1) * 512;
   return w;
 }
 

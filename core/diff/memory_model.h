@@ -14,7 +14,8 @@ struct WorkerMemory {
   double images = 0;      // targets, renders and loss gradients of the largest shard
   double reservoirs = 0;  // ReSTIR chains (current and previous) with their kd-tree
   double gradients = 0;   // per-thread gradient scratch
-  double total() const { return geometry + textures + images + reservoirs + gradients; }
+  double variance = 0;    // variance-aware jobs: the variance pass's images and per-thread decision records
+  double total() const { return geometry + textures + images + reservoirs + gradients + variance; }
 };
 
 // `threads`: the worker's thread count (each holds a gradient scratch).

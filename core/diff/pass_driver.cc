@@ -52,7 +52,8 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
   PassOutput res;
   res.image = Image(W, H, 3);
   if (stage1) res.derivSq.assign(size_t(W) * size_t(H), 0.f);
-  if (variance) res.secondMoment = Image(W, H, 3);
+  const bool squares = variance || spec.squares;
+  if (squares) res.secondMoment = Image(W, H, 3);
   std::mutex mergeMutex;
   std::atomic<bool> cancelled{false};
 
@@ -108,7 +109,7 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
             }
             ++kept;
             acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
-            if (variance) {
+            if (squares) {
               acc2[0] += double(v.x) * v.x; acc2[1] += double(v.y) * v.y; acc2[2] += double(v.z) * v.z;
             }
             if (stage1) {  // one sample's squared derivative norm (one sample per cell)
@@ -117,7 +118,7 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
             }
           }
           if (kept > 0) res.image.setRgb(x, y, Rgb(float(acc[0] / kept), float(acc[1] / kept), float(acc[2] / kept)));
-          if (kept > 0 && variance) res.secondMoment.setRgb(x, y, Rgb(float(acc2[0] / kept), float(acc2[1] / kept), float(acc2[2] / kept)));
+          if (kept > 0 && squares) res.secondMoment.setRgb(x, y, Rgb(float(acc2[0] / kept), float(acc2[1] / kept), float(acc2[2] / kept)));
           // The adjoint was split over all samples; the kept ones carry the whole pixel.
           if (derivative) scratch->commit(pixelGrad, kept > 0 ? float(samples) / float(kept) : 0.f);
           INVR_INVARIANT(pixelGrad.size() == 0, "a pixel's derivatives outlived it");

@@ -34,6 +34,7 @@ struct PassSpec {
   const Image* adjoint = nullptr;     // Derivative: dL/dI per pixel and channel; Variance: dL/dV
   const Image* mean = nullptr;        // Variance: an independent estimate of each pixel (the primal render)
   bool detached = false;              // Variance: the detached baseline (variance_visitor.h)
+  bool squares = false;               // Primal: also the mean of the squared samples (secondMoment)
   StoredReservoir* reservoirs = nullptr;  // one slot per pixel sample (first draw), or null
   const std::atomic<bool>* cancel = nullptr;  // checked per 16x16 tile; raised: EvaluationCancelled
 };
@@ -41,7 +42,7 @@ struct PassSpec {
 struct PassOutput {
   Image image;                 // the pass's radiance estimate per pixel (pixels outside the batch: 0)
   std::vector<float> derivSq;  // Stage1: per pixel
-  Image secondMoment;          // Variance: the mean of the squared samples per pixel and channel
+  Image secondMoment;          // Variance (and Primal with squares): the mean of the squared samples per pixel and channel
   SampleDrops drops;
   RayStats rays;
   RestirCounters restir;

@@ -64,6 +64,21 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
           " per axis, 1 sample, edge-aware upsampling" +
           (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) + ")";
   est.push_back(px);
+  if (g.variance.enabled) {
+    const auto& v = g.variance;
+    std::string line = "variance pass (Yan et al. 2024): " + std::to_string(v.spp) + " spp of fresh paths per step, " +
+                       (v.detached ? "detached estimator (Weier et al. 2021 baseline: densities held constant)"
+                                   : "unbiased estimator (every sampling decision scored, MIS and roulette differentiated)") +
+                       ", the primal render as the independent mean; loss = bias + ";
+    line += v.cost == VarianceCost::Depth ? num(v.weight) + " * t * V, t the render cost in rays per sample (Eq. 33, 36)"
+                                          : num(v.weight) + " / " + num(v.samples) + " * V (Eq. 32)";
+    est.push_back(line);
+  }
+  if (!p.scene->sampling.survival.empty()) {
+    std::string q;
+    for (float x : p.scene->sampling.survival) q += (q.empty() ? "" : ", ") + num(x);
+    est.push_back("Russian roulette: fixed survival per bounce (" + q + "; the last repeats)");
+  }
   est.push_back("boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility discontinuity moves with them");
   est.push_back("light transport of targets, gradients and final renders: " +
                 (g.maxDepth > 1 ? std::to_string(g.maxDepth) + " vertices, NEE + MIS" : std::string("direct illumination")));
@@ -77,14 +92,14 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
                                        : std::string(" (constant learning rates)"))
       << ", " << p.steps << " steps, " << p.viewsPerStep << " view(s) per step\n";
   out << "targets: "
-      << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp); parameter error reported"
+      << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp)" + (parameterError(p, p.initial) >= 0 ? "; parameter error reported" : "; sampling parameters only: no parameter error")
                                : std::string("uploaded images; no ground truth"))
       << "\n";
   size_t maxShard = 0;
   for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
   // A mini-batch traces each of its N draws (a pixel drawn twice, twice); stage 1 comes on top.
   const double pixelSamples = g.pixels.sampler == PixelSampler::All ? double(pixels) : double(batchSamples);
-  const double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient);
+  const double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient + (g.variance.enabled ? g.variance.spp : 0));
   out << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << num(paths / 1e6)
       << " M camera paths per step\n";
   plan.set_shards(uint32_t(p.shards.size()));
@@ -94,7 +109,8 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   const WorkerMemory mem = estimateWorkerMemory(p, workerThreads);
   out << "memory per worker (largest shard, " << workerThreads << " threads): ~" << mib(mem.total()) << " MiB (geometry "
       << mib(mem.geometry) << ", images " << mib(mem.images) << ", reservoirs " << mib(mem.reservoirs) << ", gradients "
-      << mib(mem.gradients) << ", textures " << mib(mem.textures) << ")\n";
+      << mib(mem.gradients) << ", textures " << mib(mem.textures)
+      << (g.variance.enabled ? ", variance pass " + mib(mem.variance) : std::string()) << ")\n";
   plan.set_worker_threads(workerThreads);
   plan.set_worker_memory_bytes(mem.total());
   plan.set_geometry_bytes(mem.geometry);
@@ -102,6 +118,7 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   plan.set_reservoir_bytes(mem.reservoirs);
   plan.set_gradient_bytes(mem.gradients);
   plan.set_texture_bytes(mem.textures);
+  plan.set_variance_bytes(mem.variance);
   plan.set_text(out.str());
   return plan;
 }

@@ -230,6 +230,11 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       fail("variance.estimator", "unknown estimator '" + v.estimator() + "' (use unbiased or detached)");
     vo.detached = v.estimator() == "detached";
     vo.spp = positive("variance.spp", v.spp(), 1, 4096);
+    if (v.cost_model() != "" && v.cost_model() != "none" && v.cost_model() != "depth")
+      fail("variance.cost_model", "unknown cost model '" + v.cost_model() + "' (use none or depth)");
+    vo.cost = v.cost_model() == "depth" ? VarianceCost::Depth : VarianceCost::None;
+    if (vo.cost == VarianceCost::Depth && v.samples() != 0)
+      fail("variance.samples", "has no meaning with cost_model depth: the loss is bias + weight * t * V (Eq. 33); leave samples unset");
     if (p.gradient.method != GradientMethod::Pt)
       fail("variance", "needs method METHOD_PT: RIS and ReSTIR resampling have no variance derivatives yet");
     if (p.gradient.pixels.sampler != PixelSampler::All && p.gradient.pixels.sampler != PixelSampler::Uniform)
@@ -326,9 +331,16 @@ GradientRequest shardRequest(const Problem& p, const Evaluation& e, size_t shard
 }
 
 double parameterError(const Problem& p, const std::vector<float>& theta) {
+  // Sampling parameters change the noise, never the mean: they have no ground truth.
   double sum = 0;
-  for (size_t i = 0; i < theta.size(); ++i) sum += double(theta[i] - p.truth[i]) * double(theta[i] - p.truth[i]);
-  return std::sqrt(sum / double(std::max<size_t>(1, theta.size())));
+  size_t n = 0;
+  for (const ParameterSlot& s : p.params.slots()) {
+    if (s.kind == ParamKind::LightLogits || s.kind == ParamKind::PixelLightLogits || s.kind == ParamKind::Survival) continue;
+    for (size_t i = s.offset; i < s.offset + s.size; ++i) sum += double(theta[i] - p.truth[i]) * double(theta[i] - p.truth[i]);
+    n += s.size;
+  }
+  if (n == 0) return -1.0;
+  return std::sqrt(sum / double(n));
 }
 
 std::vector<int> viewsForStep(const Problem& p, uint64_t step) {

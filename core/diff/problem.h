@@ -62,7 +62,7 @@ RenderOptions targetRenderOptions(const Problem& problem);  // how targets are r
 // EvaluationCancelled.
 Image renderTarget(Problem& problem, int view, const std::atomic<bool>* cancel = nullptr);
 
-// Root-mean-square difference between theta and the truth.
+// RMS distance of theta to the truth over the parameters that have one (not sampling/...); -1 when none does.
 double parameterError(const Problem& problem, const std::vector<float>& theta);
 
 // The views of step `step`: a deterministic mini-batch (a seeded shuffle per step) or all views.

@@ -68,7 +68,48 @@ v1::JobSpec zooJob(const std::string& name) {
   } else if (name == "knot") {
     param(o, "materials/knot/albedo", 0.5, 0.02);
   } else if (name == "spot") {
-    param(o, "materials/object/albedo", 0.5, 0.02);
+    // Yan et al. 2024, Fig. 8: per-pixel probabilities of choosing the spot or the ambient light,
+    // from 0.5 everywhere, against the variance of a 1-spp render (the mean does not depend on
+    // them, so the bias term only adds noise to their gradient).
+    auto* p = o->add_parameters();
+    p->set_name("sampling/pixel_light_logits/0");
+    p->set_initial(0);
+    p->set_learning_rate(0.1);
+    p->add_map_resolution(32);
+    p->add_map_resolution(24);
+    o->set_method(v1::METHOD_PT);
+    o->set_loss("l2");
+    o->set_steps(150);
+    auto* v = o->mutable_variance();
+    v->set_weight(1);
+    v->set_samples(1);
+    v->set_spp(2);
+  } else if (name == "rings") {
+    // Variance-aware roughness (Yan et al. 2024, Fig. 6): the loss weighs the noise of a K-spp
+    // render against the bias, so the recovered roughness moves with K (bench variance sweeps it).
+    param(o, "materials/rings/roughness", 0.35, 0.01);
+    o->set_method(v1::METHOD_PT);
+    o->set_max_depth(3);
+    o->set_loss("l2");
+    o->set_steps(150);
+    o->set_target_spp(256);
+    o->set_learning_rate_half_life(50);
+    auto* v = o->mutable_variance();
+    v->set_weight(1);
+    v->set_samples(16);
+    v->set_spp(2);
+  } else if (name == "roulette") {
+    // Yan et al. 2024, Fig. 9: survival per bounce against time x variance (Eq. 33, 36), from
+    // q = 1 (no roulette); 6 bounces.
+    param(o, "sampling/rr_survival", 1.0, 0.03);
+    o->set_method(v1::METHOD_PT);
+    o->set_max_depth(6);
+    o->set_loss("l2");
+    o->set_steps(120);
+    auto* v = o->mutable_variance();
+    v->set_weight(1);
+    v->set_cost_model("depth");
+    v->set_spp(2);
   }
   return job;
 }

@@ -26,6 +26,7 @@ enum class Stream : uint64_t {
   FinalRender = 8,       // renders of the result
   ImageError = 9,        // the image-error meter's renders
   Variance = 10,         // variance pass of a variance-aware step (Yan et al. 2024)
+  VarianceMap = 11,      // the per-pixel variance maps of a variance-aware job's results
 };
 
 // The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as

@@ -39,6 +39,10 @@ void accumulateShard(GradientResult& total, const GradientResult& shard) {
   GradientStats& t = total.stats;
   const GradientStats& s = shard.stats;
   t.loss += s.loss;
+  t.biasTerm += s.biasTerm;
+  t.varianceTerm += s.varianceTerm;
+  t.cost += s.cost;
+  t.secondsVariance += s.secondsVariance;
   t.drops += s.drops;
   t.nonFiniteSamples += s.nonFiniteSamples;
   t.secondsPrimal += s.secondsPrimal;

@@ -8,6 +8,8 @@
 
 #include "core/error.h"
 #include "core/image/image.h"
+#include "core/lights/light_selection.h"
+#include "core/scene/scene.h"
 
 namespace invr {
 
@@ -72,6 +74,36 @@ std::vector<std::string> writeParameters(const std::filesystem::path& dir, const
   if (!out) throw InputError("cannot write '" + (dir / "parameters.json").string() + "'");
   out << text;
   if (!out.flush()) throw InputError("cannot write '" + (dir / "parameters.json").string() + "'");
+  return files;
+}
+
+std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir, const ParameterRegistry& params, Scene& scene,
+                                               const std::vector<float>& theta) {
+  std::vector<std::string> files;
+  if (!params.hasSamplingParameters()) return files;
+  params.write(theta, scene);
+  {
+    std::ofstream out(dir / "light_selection.csv");
+    out << "light,probability\n";
+    for (size_t i = 0; i < scene.lights.size(); ++i) out << scene.lights[i].name << "," << scene.lightSelection().pmf(i) << "\n";
+    if (!out.flush()) throw InputError("cannot write '" + (dir / "light_selection.csv").string() + "'");
+    files.push_back("light_selection.csv");
+  }
+  std::vector<std::string> names;
+  for (const Light& l : scene.lights) names.push_back(l.name);
+  for (size_t v = 0; v < scene.sampling.pixelLogits.size(); ++v) {
+    const auto& map = scene.sampling.pixelLogits[v];
+    if (map.empty()) continue;
+    const size_t n = scene.lights.size();
+    ExrLayer layer{"", names, Image(map.width, map.height, int(n))};
+    for (size_t cell = 0; cell < size_t(map.width) * size_t(map.height); ++cell) {
+      std::vector<float> pmf = softmax(std::span<const float>(map.logits.data() + cell * n, n));
+      std::copy(pmf.begin(), pmf.end(), layer.image.data().begin() + std::ptrdiff_t(cell * n));
+    }
+    std::string file = "selection_view" + std::to_string(v) + ".exr";
+    writeExrLayers(dir / file, {layer});
+    files.push_back(file);
+  }
   return files;
 }
 

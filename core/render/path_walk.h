@@ -21,9 +21,6 @@
 
 namespace invr {
 
-// Longest walk any setting allows (max_depth is validated against it).
-inline constexpr int kMaxWalkDepth = 64;
-
 struct WalkSettings {
   int maxDepth = 1;              // path vertices after the camera; 1 = direct illumination
   int russianRouletteDepth = 3;  // roulette after this many bounces
@@ -70,7 +67,10 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
   };
   const std::vector<float>& survival = scene.sampling.survival;
   for (int depth = 0;; ++depth) {
-    if (ctx && ctx->stats) ++(depth == 0 ? ctx->stats->camera : ctx->stats->bounce);
+    if (ctx && ctx->stats) {
+      ++(depth == 0 ? ctx->stats->camera : ctx->stats->bounce);
+      ++ctx->stats->byDepth[depth];
+    }
     if (ctx && ctx->record) ctx->record->push_back({o, d, std::numeric_limits<float>::infinity(), false});
     SurfaceHit hit;
     if (!scene.intersect(o, d, hit)) {
@@ -109,7 +109,9 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
     const WalkVertex vx{&hit, &bsdf, material, sp.wo, depth};
     if (!bsdf.isDelta()) {
       DirectPath p;
+      const uint64_t shadowBefore = ctx && ctx->stats ? ctx->stats->shadow : 0;
       if (direct(sp, depth, sampler, ctx, p)) v.direct(beta, p, vx);
+      if (ctx && ctx->stats) ctx->stats->byDepth[depth] += ctx->stats->shadow - shadowBefore;
     }
     // At the last vertex the continuation only adds emission: needed for the BSDF half of MIS and
     // after delta lobes; without MIS the direct strategy covers what rough lobes see.

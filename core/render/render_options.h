@@ -26,11 +26,23 @@ struct RenderOptions {
   const std::atomic<bool>* cancel = nullptr;
 };
 
-// Rays traced, by purpose (for throughput figures).
+// Longest walk any setting allows (max_depth is validated against it).
+inline constexpr int kMaxWalkDepth = 64;
+
+// Rays traced, by purpose (for throughput figures), and by the path depth they were traced at
+// (the ray that reaches vertex d plus the shadow rays of vertex d; path walks only). The per-depth
+// counts calibrate the render-time model of variance-aware jobs (Yan et al. 2024, Eq. 36).
 struct RayStats {
   uint64_t camera = 0, bounce = 0, shadow = 0;
+  uint64_t byDepth[kMaxWalkDepth + 1] = {};
   uint64_t total() const { return camera + bounce + shadow; }
-  RayStats& operator+=(const RayStats& o) { camera += o.camera; bounce += o.bounce; shadow += o.shadow; return *this; }
+  RayStats& operator+=(const RayStats& o) {
+    camera += o.camera;
+    bounce += o.bounce;
+    shadow += o.shadow;
+    for (int d = 0; d <= kMaxWalkDepth; ++d) byDepth[d] += o.byDepth[d];
+    return *this;
+  }
 };
 
 // A ray as the renderer traced it (for `invr bench rays`, which replays them through bare Embree).

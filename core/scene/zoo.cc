@@ -308,6 +308,59 @@ v1::Scene spot() {
   return m.s;
 }
 
+// Yan et al. 2024's "rings" (Fig. 3, 6): glossy rings on a diffuse floor under a small area light.
+// The rings are open tubes standing on the floor, so their glossy insides throw light onto the
+// floor within them (paths of three vertices and more); their roughness sets the render's mean and
+// how noisy it is.
+v1::Scene rings() {
+  SceneMaker m;
+  m.s.set_name("rings");
+  m.diffuse("floor", 0.6, 0.6, 0.6);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  auto* ring = m.s.add_materials();
+  ring->set_name("rings");
+  ring->mutable_rough_conductor()->mutable_roughness()->set_value(0.15);
+  SceneMaker::set(ring->mutable_rough_conductor()->mutable_eta(), 0.2, 0.92, 1.1);  // gold
+  SceneMaker::set(ring->mutable_rough_conductor()->mutable_k(), 3.9, 2.45, 2.14);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* a = m.shape("ring_a", "rings");
+  a->mutable_cylinder();
+  SceneMaker::place(a, {0.45, 0.45, 0.09}, {-90, 0, 0}, {-0.45, 0.09, 0.0});
+  auto* b = m.shape("ring_b", "rings");
+  b->mutable_cylinder();
+  SceneMaker::place(b, {0.35, 0.35, 0.12}, {-90, 0, 0}, {0.5, 0.12, -0.25});
+  m.quad("light", "emitter", {0.12, 0.12, 1}, kFaceDown, {0.6, 1.6, 0.9});
+  m.areaLight("small", "light", 180, 170, 150);
+  m.view("front", {0, 1.5, 1.9}, {0, 0.05, -0.1}, 45);
+  m.film(160, 120);
+  return m.s;
+}
+
+// A Russian-roulette scene (Yan et al. 2024, Fig. 9): a closed diffuse room lit by a small light
+// above a partition, so most light arrives after several bounces and deep paths matter.
+v1::Scene roulette() {
+  SceneMaker m;
+  m.s.set_name("roulette");
+  m.diffuse("white", 0.78, 0.78, 0.78);
+  m.diffuse("warm", 0.8, 0.6, 0.4);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.quad("floor", "white", {1, 1, 1}, kFaceUp, {0, 0, 0});
+  m.quad("ceiling", "white", {1, 1, 1}, kFaceDown, {0, 2, 0});
+  m.quad("back", "warm", {1, 1, 1}, kFacePosZ, {0, 1, -1});
+  m.quad("front", "white", {1, 1, 1}, kFaceNegZ, {0, 1, 1});
+  m.quad("left", "white", {1, 1, 1}, kFacePosX, {-1, 1, 0});
+  m.quad("right", "warm", {1, 1, 1}, kFaceNegX, {1, 1, 0});
+  // The light faces the ceiling from behind a partition: nothing the camera sees is lit directly.
+  auto* wall = m.shape("partition", "white");
+  wall->mutable_box();
+  SceneMaker::place(wall, {0.02, 0.7, 0.9}, {0, 0, 0}, {0.45, 0.7, 0});
+  m.quad("light", "emitter", {0.15, 0.15, 1}, kFaceUp, {0.75, 0.3, 0});
+  m.areaLight("bulb", "light", 40, 36, 30);
+  m.view("inside", {-0.85, 1.0, 0.9}, {0.2, 0.8, -0.6}, 60);
+  m.film(128, 96);
+  return m.s;
+}
+
 struct ZooDef {
   ZooEntry entry;
   std::function<v1::Scene()> build;
@@ -322,7 +375,9 @@ const std::vector<ZooDef>& zoo() {
       {{"backlit", "textured sphere under an environment lit from behind, 16 views"}, backlit},
       {{"tree", "tree-like object, a small light and an occluded large light"}, tree},
       {{"knot", "torus knot under a bright spot and dim fills"}, knot},
-      {{"spot", "textured object under a bright spot and a dim ambient light"}, spot},
+      {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},
+      {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},
+      {{"roulette", "closed room lit indirectly, 6 bounces; Russian-roulette survival per bounce"}, roulette},
   };
   return defs;
 }

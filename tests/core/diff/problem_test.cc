@@ -144,7 +144,8 @@ TEST(Problem, EveryZooSceneHasAValidJob) {
     auto job = zooJob(e.name);
     Problem p = buildProblem(job);
     EXPECT_GT(p.params.size(), 0u) << e.name;
-    EXPECT_NE(p.initial, p.truth) << e.name;
+    // Sampling parameters (spot, roulette) change the noise, not the mean: they have no truth.
+    if (parameterError(p, p.initial) >= 0) EXPECT_NE(p.initial, p.truth) << e.name;
   }
 }
 
