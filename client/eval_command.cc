@@ -62,6 +62,7 @@ struct Suite {
   GradientsArgs gradients;
   OverheadArgs overhead;
   PixelBenchArgs pixelVariance;
+  VarianceBenchArgs variance;  // Yan et al. 2024: rings, spot and roulette
   std::vector<double> pixelThetaFractions = {1.0};  // measure the pixel samplers at each of these θ
 };
 
@@ -92,6 +93,7 @@ Suite makeSuite(bool quick) {
     s.overhead.targetSpp = 16;
     s.pixelVariance.reps = 16;
     s.pixelVariance.targetSpp = 16;
+    s.variance = quickVarianceBenchArgs();
   } else {
     s.scenes = {{"cornell", 20, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}},
                 {"oxalis", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}, {kRestir, kUniform}, {kRestir, kAdaptive}}},
@@ -511,6 +513,8 @@ void runEval(const EvalArgs& a) {
       pa.thetaFraction = f;
       tables.push_back(benchPixelVariance(pa));
     }
+    std::cerr << "[tables] variance-aware rendering on rings, spot and roulette...\n";
+    for (BenchReport& r : benchVariance(suite.variance)) tables.push_back(std::move(r));
   }
   double total = std::chrono::duration<double>(Clock::now() - t0).count();
   Machine m = describeMachine();

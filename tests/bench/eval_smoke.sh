@@ -24,6 +24,11 @@ for name, scene in s["scenes"].items():
         assert m["steps"] >= 1, (name, method)
         assert m["seconds"] >= scene["budget_seconds_per_method"], (name, method, "stopped before its budget")
 titles = [t["benchmark"] for t in s["gradient_quality"]]
-assert titles == ["gradients", "overhead", "pixel-variance"], titles
+assert titles == ["gradients", "overhead", "pixel-variance", "variance", "variance", "variance"], titles
+variance = {t["scene"]: t for t in s["gradient_quality"] if t["benchmark"] == "variance"}
+for scene, keys in {"rings": ["detached_bias_se", "unbiased_bias_se"], "spot": ["ratio_power_over_optimized", "ratio_global_over_optimized"],
+                    "roulette": ["ratio_constant_over_optimized"]}.items():
+    for key in keys + ["overhead_ratio"]:
+        assert isinstance(variance[scene][key], (int, float)) and math.isfinite(variance[scene][key]), (scene, key)
 print("eval smoke: ok (%d scenes, %.0f s)" % (len(s["scenes"]), s["total_seconds"]))
 PY

@@ -78,6 +78,63 @@ TEST(Service, TwoWorkersGiveTheSameParametersAsOne) {
   EXPECT_EQ(theta[0], inProcess(job));
 }
 
+TEST(Service, VarianceJobsMatchInProcessWithAnyWorkerCount) {
+  // A variance-aware job (Yan et al. 2024) over two shards: the variance pass, its loss terms
+  // and the render cost travel through the service and sum as in process.
+  v1::JobSpec job = smallJob("backlit", 3);
+  auto* o = job.mutable_optimization();
+  o->set_method(v1::METHOD_PT);
+  o->set_shards(2);
+  o->set_target_spp(2);
+  o->mutable_variance()->set_samples(4);
+  std::vector<float> theta[2];
+  for (int workers = 1; workers <= 2; ++workers) {
+    TempDir tmp;
+    Cluster c(tmp.path / std::to_string(workers));
+    fs::create_directories(tmp.path / std::to_string(workers));
+    c.startServer();
+    for (int w = 0; w < workers; ++w) c.startWorker(1);
+    std::string id;
+    ASSERT_TRUE(c.submit(job, &id).ok());
+    auto evs = c.watch(id);
+    ASSERT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+    theta[workers - 1] = c.checkpointTheta(id);
+    int steps = 0;
+    for (const auto& e : evs) {
+      if (!e.has_step()) continue;
+      ++steps;
+      const auto& sp = e.step();
+      EXPECT_GT(sp.variance_term(), 0.0);
+      EXPECT_GT(sp.cost(), 1.0) << "a camera ray and a shadow ray at least";
+      EXPECT_NEAR(sp.loss(), sp.bias_term() + sp.variance_term(), 1e-9 * (1 + std::abs(sp.loss())));
+      EXPECT_GT(sp.variance_seconds(), 0.0);
+    }
+    EXPECT_EQ(steps, 3);
+    v1::JobStatus st = c.get(id);
+    EXPECT_NE(std::find(st.results().begin(), st.results().end(), "variance_view0.exr"), st.results().end());
+  }
+  EXPECT_EQ(theta[0], theta[1]);
+  EXPECT_EQ(theta[0], inProcess(job));
+}
+
+TEST(Service, SamplingParameterJobsWriteTheirSelectionMaps) {
+  v1::JobSpec job = zooJob("spot");
+  job.mutable_optimization()->set_steps(2);
+  job.mutable_optimization()->set_target_spp(4);
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  auto evs = c.watch(id);
+  ASSERT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_EQ(c.checkpointTheta(id), inProcess(job));
+  v1::JobStatus st = c.get(id);
+  for (const char* f : {"light_selection.csv", "selection_view0.exr", "variance_view0.exr", "parameters.json"})
+    EXPECT_NE(std::find(st.results().begin(), st.results().end(), f), st.results().end()) << f;
+}
+
 // Runs backlit (two shards) on two workers, disturbs one after step `after`, and returns every
 // event of the job once it has ended.
 std::vector<v1::ProgressEvent> runAndDisturb(Cluster& c, int steps, uint64_t after, const std::function<void()>& disturb) {

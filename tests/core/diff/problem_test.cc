@@ -145,7 +145,9 @@ TEST(Problem, EveryZooSceneHasAValidJob) {
     Problem p = buildProblem(job);
     EXPECT_GT(p.params.size(), 0u) << e.name;
     // Sampling parameters (spot, roulette) change the noise, not the mean: they have no truth.
-    if (parameterError(p, p.initial) >= 0) EXPECT_NE(p.initial, p.truth) << e.name;
+    if (parameterError(p, p.initial) >= 0) {
+      EXPECT_NE(p.initial, p.truth) << e.name;
+    }
   }
 }
 
