@@ -49,7 +49,7 @@ BenchReport benchPixelVariance(const PixelBenchArgs& args);
 struct VarianceBenchArgs {
   std::string scene = "all";
   double seconds = 20;        // rings: per estimator at equal time
-  int fdReps = 400;           // rings: central-difference evaluations of the reference
+  int fdReps = 800;           // rings: central-difference evaluations of the reference
   int fdSpp = 4;              // rings: spp of each render in the reference
   double fdStep = 0.02;       // rings: h (checked against h/2)
   std::vector<int> ksweep = {1, 4, 16, 64};

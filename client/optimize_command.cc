@@ -5,6 +5,7 @@
 #include <iostream>
 #include <memory>
 
+#include "client/bench_report.h"
 #include "client/commands.h"
 #include "client/job_argument.h"
 #include "client/progress.h"
@@ -59,7 +60,9 @@ void runOptimize(const OptimizeArgs& a) {
   writeParameters(dir, problem.params, result.theta);
   csv.close();
   try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
-    drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png");
+    // Sampling parameters have no ground truth: chart the loss instead.
+    const bool truth = parameterError(problem, problem.initial) >= 0;
+    drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png", "seconds", truth ? "param_error" : "loss");
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
   }
@@ -68,8 +71,19 @@ void runOptimize(const OptimizeArgs& a) {
     writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
     writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);
   }
+  // Variance-aware jobs and sampling parameters: what the optimised sampling does (docs/variance.md).
+  for (const std::string& f : writeSelectionResults(dir, problem.params, *problem.scene, result.theta)) std::cout << "wrote " << f << "\n";
+  if (problem.gradient.variance.enabled) {
+    GradientEngine engine(*problem.scene, problem.params, result.targets, problem.gradient);
+    for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v)
+      writeImage(dir / ("variance_view" + std::to_string(v) + ".exr"), engine.sampleVarianceMap(int(v), 64, problem.seed));
+  }
   const StepReport& last = result.history.back();
-  std::cout << "done: parameter error " << parameterError(problem, problem.initial) << " -> " << last.parameterError << ", loss "
+  std::cout << "done: "
+            << (last.parameterError >= 0 ? "parameter error " + BenchReport::fmt(parameterError(problem, problem.initial)) + " -> " +
+                                               BenchReport::fmt(last.parameterError)
+                                         : std::string("no parameter error (sampling parameters have no ground truth)"))
+            << ", loss "
             << result.history.front().loss << " -> " << last.loss << " in " << last.seconds << " s\n"
             << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, final/target renders)\n";
 }

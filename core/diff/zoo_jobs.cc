@@ -100,12 +100,12 @@ v1::JobSpec zooJob(const std::string& name) {
     v->set_spp(2);
   } else if (name == "roulette") {
     // Yan et al. 2024, Fig. 9: survival per bounce against time x variance (Eq. 33, 36), from
-    // q = 1 (no roulette); 6 bounces.
+    // q = 1 (no roulette); 8 bounces.
     param(o, "sampling/rr_survival", 1.0, 0.03);
     o->set_method(v1::METHOD_PT);
-    o->set_max_depth(6);
+    o->set_max_depth(8);
     o->set_loss("l2");
-    o->set_steps(120);
+    o->set_steps(200);
     auto* v = o->mutable_variance();
     v->set_weight(1);
     v->set_cost_model("depth");

@@ -337,7 +337,8 @@ v1::Scene rings() {
 }
 
 // A Russian-roulette scene (Yan et al. 2024, Fig. 9): a closed diffuse room lit by a small light
-// above a partition, so most light arrives after several bounces and deep paths matter.
+// behind a low partition that faces the ceiling, so the light arrives after one bounce or more
+// and deep paths matter, but less with every bounce.
 v1::Scene roulette() {
   SceneMaker m;
   m.s.set_name("roulette");
@@ -350,10 +351,11 @@ v1::Scene roulette() {
   m.quad("front", "white", {1, 1, 1}, kFaceNegZ, {0, 1, 1});
   m.quad("left", "white", {1, 1, 1}, kFacePosX, {-1, 1, 0});
   m.quad("right", "warm", {1, 1, 1}, kFaceNegX, {1, 1, 0});
-  // The light faces the ceiling from behind a partition: nothing the camera sees is lit directly.
+  // The light faces the ceiling from behind the partition: the walls the camera sees are lit
+  // only by the ceiling and what it lights.
   auto* wall = m.shape("partition", "white");
   wall->mutable_box();
-  SceneMaker::place(wall, {0.02, 0.7, 0.9}, {0, 0, 0}, {0.45, 0.7, 0});
+  SceneMaker::place(wall, {0.02, 0.35, 0.9}, {0, 0, 0}, {0.45, 0.35, 0});
   m.quad("light", "emitter", {0.15, 0.15, 1}, kFaceUp, {0.75, 0.3, 0});
   m.areaLight("bulb", "light", 40, 36, 30);
   m.view("inside", {-0.85, 1.0, 0.9}, {0.2, 0.8, -0.6}, 60);
@@ -377,7 +379,7 @@ const std::vector<ZooDef>& zoo() {
       {{"knot", "torus knot under a bright spot and dim fills"}, knot},
       {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},
       {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},
-      {{"roulette", "closed room lit indirectly, 6 bounces; Russian-roulette survival per bounce"}, roulette},
+      {{"roulette", "closed room lit indirectly, 8 bounces; Russian-roulette survival per bounce"}, roulette},
   };
   return defs;
 }
