@@ -74,6 +74,11 @@ void VarianceVisitor::finish() {
     for (size_t i = s_.roulettes.size(); i-- > 0;) {
       Roulette& r = s_.roulettes[i];
       r.coef += r.survived ? -weighted(F - r.gathered) + u : -u * double(r.q) / (1.0 - double(r.q));
+      // Fixed survival at q = 1 never terminates, yet E[F^2] = ... + M / q keeps a derivative there
+      // (the parameter's bound; Adam needs the left derivative). The termination branch's
+      // expectation, P(end) * score = (1 - q) * u_end * (-q / (1 - q)) = -q u_end, is finite: add it
+      // outright, with u_end the score weight of the radiance gathered before the decision.
+      if (r.q >= 1.f) r.coef -= dotRgb(w_.adjoint, r.gathered * r.gathered - w_.mean * r.gathered * 2.f);
       if (r.channel >= 0) {
         // q = max_c beta_c (before this division): d log q = sum of the earlier bounces' d log(f_c/pdf)
         // at that channel, minus the earlier roulettes' d log q.

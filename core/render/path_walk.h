@@ -13,7 +13,8 @@
 //       emission(weight, Le, light, perUnit, EmissionMis)   (the BSDF-half MIS weight applied)
 //       rejected(const WalkVertex& v, float uc, Vec2 u)      (a BSDF draw the walk rejected)
 //       roulette(q, survived, channel, depth)                (channel: throughput RR's max channel, or -1;
-//                                                              depth: the vertex whose bounce it follows)
+//                                                              depth: the vertex whose bounce it follows;
+//                                                              fixed survival reports q = 1 too, survived)
 // Random numbers are consumed in a fixed order, so equal samplers walk equal paths.
 #pragma once
 
@@ -148,6 +149,8 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
         roulette(q, survived, -1);
         if (!survived) return;
         beta = beta / q;
+      } else {
+        roulette(1.f, true, -1);  // certain: no random number, but q = 1 still has a (left) derivative
       }
     } else if (depth + 1 >= s.russianRouletteDepth) {
       float m = maxComponent(beta);

@@ -151,76 +151,147 @@ constexpr const char* kGlossy = R"({
   "film": {"width": 4, "height": 4}
 })";
 
-TEST(Variance, RoughnessSecondMomentMatchesFiniteDifferences) {
-  auto scene = test::sceneFromJson(kGlossy);
-  ParameterRegistry reg;
-  reg.add(*scene, "materials/metal/roughness");
-  GradientOptions o;
-  o.method = GradientMethod::Pt;
-  o.maxDepth = 1;
-  const int W = scene->width, H = scene->height;
-  const float alpha = 0.3f;
-  const int kSamples = 1 << 16;
-  // E[F^2] summed over pixels and channels at alpha (+ d), common random numbers.
-  auto differences = [&](float a, test::MeanSE* fdOut, float h) {
-    reg.write({a + h}, *scene);
-    auto plus = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
-    std::vector<double> fp(static_cast<size_t>(kSamples));
-    for (int s = 0; s < kSamples; ++s) {
-      double sum = 0;
+// dE[F^2]/dtheta_index summed over pixels and channels: the variance visitor (mean 0, adjoint 1:
+// dV^ = 2 F dF + F^2 S), unbiased and detached, against central differences of E[F^2] with
+// sampling re-derived at theta +- h and common random numbers, at h and h/2.
+struct SecondMomentCheck {
+  test::MeanSE fd, fdHalf, unbiased, detached;
+};
+SecondMomentCheck secondMomentAgainstFiniteDifferences(Scene& scene, const ParameterRegistry& reg, const GradientOptions& o,
+                                                       const std::vector<float>& theta, size_t index, float h, int samples) {
+  const int W = scene.width, H = scene.height;
+  auto momentSums = [&](const std::vector<float>& at) {
+    reg.write(at, scene);
+    auto est = makePtEstimator({scene, reg, o, 0, 1, nullptr});
+    std::vector<double> sums(static_cast<size_t>(samples));
+    for (int s = 0; s < samples; ++s)
       for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
-          Rgb v = traceSample(*scene, *plus, x, y, 11, uint64_t(s), nullptr, nullptr);
-          sum += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
+          Rgb v = traceSample(scene, *est, x, y, 11, uint64_t(s), nullptr, nullptr);
+          sums[size_t(s)] += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
         }
-      fp[size_t(s)] = sum;
-    }
-    reg.write({a - h}, *scene);
-    auto minus = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
-    for (int s = 0; s < kSamples; ++s) {
-      double sum = 0;
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-          Rgb v = traceSample(*scene, *minus, x, y, 11, uint64_t(s), nullptr, nullptr);
-          sum += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
-        }
-      fdOut->add((fp[size_t(s)] - sum) / (2.0 * h));
-    }
+    return sums;
   };
-  test::MeanSE fd, fdHalf;
-  differences(alpha, &fd, 0.02f);
-  differences(alpha, &fdHalf, 0.01f);
-  std::printf("finite differences of E[F^2]: h 0.02 %+.5e (se %.1e), h 0.01 %+.5e (se %.1e)\n", fd.mean, fd.se(), fdHalf.mean, fdHalf.se());
-  EXPECT_NEAR(fd.mean, fdHalf.mean, test::kSigmas * std::hypot(fd.se(), fdHalf.se())) << "h is not small enough";
-
-  reg.write({alpha}, *scene);
-  auto est = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
-  // Mean 0 and adjoint 1: dV^ = 2 F dF + F^2 S, the second moment's derivative.
+  SecondMomentCheck c;
+  for (float step : {h, h / 2}) {
+    auto plus = theta, minus = theta;
+    plus[index] += step;
+    minus[index] -= step;
+    std::vector<double> fp = momentSums(plus), fm = momentSums(minus);
+    for (int s = 0; s < samples; ++s) (step == h ? c.fd : c.fdHalf).add((fp[size_t(s)] - fm[size_t(s)]) / (2.0 * double(step)));
+  }
+  reg.write(theta, scene);
+  auto est = makePtEstimator({scene, reg, o, 0, 1, nullptr});
   for (bool detached : {false, true}) {
     VarianceWeights w;
     w.adjoint = Rgb(1.f);
     w.detached = detached;
-    test::MeanSE d;
     PathGradient g;
-    for (int s = 0; s < kSamples; ++s) {
+    for (int s = 0; s < samples; ++s) {
       double sum = 0;
       for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
           g.clear();
-          traceSample(*scene, *est, x, y, 23, uint64_t(s), &w, &g);
-          sum += sumEntries(g, 0);
+          traceSample(scene, *est, x, y, 23, uint64_t(s), &w, &g);
+          sum += sumEntries(g, uint32_t(index));
         }
-      d.add(sum);
+      (detached ? c.detached : c.unbiased).add(sum);
     }
-    const double se = std::hypot(d.se(), fdHalf.se());
-    std::printf("%s: dE[F^2]/dalpha %+.5e (se %.1e) against %+.5e: %.1f combined SE apart\n", detached ? "detached" : "unbiased", d.mean, d.se(),
-                fdHalf.mean, std::abs(d.mean - fdHalf.mean) / se);
-    if (detached) {
-      EXPECT_GT(std::abs(d.mean - fdHalf.mean), 6 * se) << "the detached baseline should be biased here";
-    } else {
-      EXPECT_NEAR(d.mean, fdHalf.mean, test::kSigmas * se);
-      EXPECT_LT(test::kSigmas * se, 0.1 * std::abs(fdHalf.mean)) << "the comparison has no power";
-    }
+  }
+  std::printf("dE[F^2]: finite differences %+.5e (se %.1e), at h/2 %+.5e (se %.1e); unbiased %+.5e (se %.1e), detached %+.5e (se %.1e)\n",
+              c.fd.mean, c.fd.se(), c.fdHalf.mean, c.fdHalf.se(), c.unbiased.mean, c.unbiased.se(), c.detached.mean, c.detached.se());
+  return c;
+}
+
+// The unbiased estimator within 4 combined SE of the reference (finite differences at h/2, h
+// checked against it), with power; the detached one either biased (> 6 SE) or, where no density
+// depends on theta, equal to the unbiased one.
+enum class Detached { Biased, Unbiased };
+void expectSecondMoment(const SecondMomentCheck& c, Detached detached) {
+  EXPECT_NEAR(c.fd.mean, c.fdHalf.mean, test::kSigmas * std::hypot(c.fd.se(), c.fdHalf.se())) << "h is not small enough";
+  const double se = std::hypot(c.unbiased.se(), c.fdHalf.se());
+  EXPECT_NEAR(c.unbiased.mean, c.fdHalf.mean, test::kSigmas * se);
+  EXPECT_LT(test::kSigmas * se, 0.1 * std::abs(c.fdHalf.mean)) << "the comparison has no power";
+  const double seDetached = std::hypot(c.detached.se(), c.fdHalf.se());
+  if (detached == Detached::Biased) {
+    EXPECT_GT(std::abs(c.detached.mean - c.fdHalf.mean), 6 * seDetached) << "the detached baseline should be biased here";
+  } else if (detached == Detached::Unbiased) {
+    EXPECT_NEAR(c.detached.mean, c.unbiased.mean, 1e-9 * (1 + std::abs(c.unbiased.mean)));
+  }
+}
+
+GradientOptions directPt() {
+  GradientOptions o;
+  o.method = GradientMethod::Pt;
+  o.maxDepth = 1;
+  return o;
+}
+
+TEST(Variance, RoughnessSecondMomentMatchesFiniteDifferences) {
+  auto scene = test::sceneFromJson(kGlossy);
+  ParameterRegistry reg;
+  reg.add(*scene, "materials/metal/roughness");
+  expectSecondMoment(secondMomentAgainstFiniteDifferences(*scene, reg, directPt(), {0.3f}, 0, 0.02f, 1 << 16), Detached::Biased);
+}
+
+// The same plate in rough plastic: its albedo sets the probability of sampling the specular lobe
+// (a mixture density), besides the diffuse base.
+TEST(Variance, PlasticAlbedoMixtureSecondMomentMatchesFiniteDifferences) {
+  std::string json = kGlossy;
+  json.replace(json.find(R"("rough_conductor": {"roughness": {"value": 0.3}})"), std::string(R"("rough_conductor": {"roughness": {"value": 0.3}})").size(),
+               R"("rough_plastic": {"albedo": {"value": 0.2}, "roughness": {"value": 0.2}})");
+  auto scene = test::sceneFromJson(json);
+  ParameterRegistry reg;
+  reg.add(*scene, "materials/metal/albedo");
+  // A dark base: the specular share f / (f + (1 - f) lum) stays inside its clamp [0.1, 0.9].
+  expectSecondMoment(secondMomentAgainstFiniteDifferences(*scene, reg, directPt(), {0.2f, 0.2f, 0.2f}, 1, 0.05f, 1 << 16), Detached::Biased);
+}
+
+// Control: a diffuse albedo enters no density here (no lobe choice; both lights' selection by
+// logits, not by power), so the detached estimator must equal the unbiased one.
+TEST(Variance, DensityFreeParameterLeavesTheDetachedEstimatorUnbiased) {
+  std::string json = kGlossy;
+  json.replace(json.find(R"("rough_conductor": {"roughness": {"value": 0.3}})"), std::string(R"("rough_conductor": {"roughness": {"value": 0.3}})").size(),
+               R"("diffuse": {"albedo": {"value": 0.5}})");
+  auto scene = test::sceneFromJson(json);
+  scene->sampling.lightLogits = {0.f, 0.f};
+  scene->updateLightSelection();
+  ParameterRegistry reg;
+  reg.add(*scene, "materials/metal/albedo");
+  expectSecondMoment(secondMomentAgainstFiniteDifferences(*scene, reg, directPt(), {0.5f, 0.5f, 0.5f}, 0, 0.05f, 1 << 15), Detached::Unbiased);
+}
+
+// Light selection by power depends on every light's intensity: the lamp's intensity enters F and
+// the selection pmf, with MIS between the lamp and the sky.
+TEST(Variance, PowerSelectionIntensitySecondMomentMatchesFiniteDifferences) {
+  auto scene = test::sceneFromJson(kGlossy);
+  ParameterRegistry reg;
+  reg.add(*scene, "lights/lamp/intensity");
+  const std::vector<float> theta = reg.read(*scene);
+  expectSecondMoment(secondMomentAgainstFiniteDifferences(*scene, reg, directPt(), theta, 1, 2.f, 1 << 16), Detached::Biased);
+}
+
+// Global and per-pixel selection logits with MIS on: pdf-only parameters, so the detached
+// estimator gives 0 while the second moment moves.
+TEST(Variance, SelectionLogitsWithMisMatchFiniteDifferences) {
+  {
+    auto scene = test::sceneFromJson(kGlossy);
+    ParameterRegistry reg;
+    reg.add(*scene, "sampling/light_logits");
+    expectSecondMoment(secondMomentAgainstFiniteDifferences(*scene, reg, directPt(), {0.5f, -0.5f}, 0, 0.1f, 1 << 16), Detached::Biased);
+  }
+  {
+    auto scene = test::sceneFromJson(kGlossy);
+    ParameterRegistry reg;
+    ParameterOptions map;
+    map.mapWidth = 2;  // two cells of 2x4 pixels, 2 lights each
+    map.mapHeight = 1;
+    reg.add(*scene, "sampling/pixel_light_logits/0", map);
+    std::vector<float> theta = reg.read(*scene);
+    ASSERT_EQ(theta.size(), 4u);
+    theta[0] += 0.4f;  // the cells differ
+    theta[2] -= 0.4f;
+    expectSecondMoment(secondMomentAgainstFiniteDifferences(*scene, reg, directPt(), theta, 2, 0.3f, 1 << 17), Detached::Biased);
   }
 }
 
@@ -287,7 +358,100 @@ TEST(Variance, RouletteSurvivalMatchesFiniteDifferences) {
     EXPECT_NEAR(d[k].mean, fd.mean, test::kSigmas * se) << "bounce " << k + 1;
     EXPECT_LT(test::kSigmas * se, 0.1 * std::abs(fd.mean)) << "bounce " << k + 1 << ": the comparison has no power";
   }
-  EXPECT_EQ(d[0].mean, 0.0) << "survival 1 draws no random number: nothing to differentiate";
+}
+
+// What one walk gathers after m bounces (emission at, and NEE from, vertex m): the part of F that
+// needs m survival decisions. Fixed survival 1 draws no random number, so this is the walk
+// without roulette.
+struct BounceGroups {
+  std::vector<Rgb> g = std::vector<Rgb>(8, Rgb(0.f));
+  int bounces = 0;
+  void emission(Rgb weight, Rgb Le, const LightSampleRef&, float) { g[size_t(bounces)] += weight * Le; }
+  void direct(Rgb beta, const DirectPath& p, const WalkVertex& v) { g[size_t(v.depth)] += beta * p.contribution(); }
+  void bounce(const WalkVertex&, Vec3) { ++bounces; }
+};
+
+TEST(Variance, RouletteSecondMomentMatchesTheClosedForm) {
+  // With fixed survival q_j after vertex j, F = sum_m g_m 1[the path reached m] / Q_m with
+  // Q_m = prod_{j<m} q_j, so E[F^2] = sum_{m,n} E[g_m . g_n] / Q_min(m,n) and
+  //   dE[F^2]/dq_j = -sum_{min(m,n) > j} E[g_m . g_n] / (Q_min(m,n) q_j).
+  // E[g_m . g_n] is measured on walks without roulette; the second moment with roulette and the
+  // variance visitor's derivative must match the closed form.
+  auto scene = test::sceneFromJson(kBox);
+  const std::vector<float> q = {1.f, 0.8f, 0.6f, 0.7f, 0.9f};
+  const int depth = 5, W = scene->width, H = scene->height, kSamples = 1 << 18;
+  WalkSettings walk;
+  walk.maxDepth = depth;
+  walk.bsdfMis = true;
+  auto Q = [&](int m) {
+    double p = 1;
+    for (int j = 0; j < m; ++j) p *= q[size_t(j)];
+    return p;
+  };
+  // Per sample (summed over pixels): the closed form's second moment and derivative.
+  scene->sampling.survival.assign(q.size(), 1.f);
+  test::MeanSE closed;
+  std::vector<test::MeanSE> closedD(q.size());
+  for (int s = 0; s < kSamples; ++s) {
+    double m2 = 0;
+    std::vector<double> d(q.size(), 0.0);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        Sampler sampler(RngKey::withSample(RngKey{41, 0, 0, uint64_t(y * W + x), 0}.pixelHash(), uint64_t(s)));
+        Vec3 dir = scene->cameras[0].direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
+        BounceGroups v;
+        NeeMisDirect direct{*scene, nullptr};
+        walkPath(*scene, scene->cameras[0].eye, dir, sampler, walk, direct, v, nullptr);
+        for (int m = 0; m <= depth; ++m)
+          for (int n = 0; n <= depth; ++n) {
+            const Rgb& a = v.g[size_t(m)];
+            const Rgb& b = v.g[size_t(n)];
+            const double gg = double(a.x) * b.x + double(a.y) * b.y + double(a.z) * b.z;
+            const int lo = std::min(m, n);
+            m2 += gg / Q(lo);
+            for (int j = 0; j < lo; ++j) d[size_t(j)] -= gg / (Q(lo) * q[size_t(j)]);
+          }
+      }
+    closed.add(m2);
+    for (size_t j = 0; j < q.size(); ++j) closedD[j].add(d[j]);
+  }
+  // With roulette: the second moment by plain walks, and its derivative by the variance visitor.
+  scene->sampling.survival = q;
+  ParameterRegistry reg;
+  reg.add(*scene, "sampling/rr_survival");
+  GradientOptions o = directPt();
+  o.maxDepth = depth;
+  auto est = makePtEstimator({*scene, reg, o, 0, 1, nullptr});
+  VarianceWeights w;
+  w.adjoint = Rgb(1.f);
+  test::MeanSE measured;
+  std::vector<test::MeanSE> visitor(q.size());
+  PathGradient g;
+  for (int s = 0; s < kSamples; ++s) {
+    double m2 = 0;
+    std::vector<double> sum(q.size(), 0.0);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        Rgb v = traceSample(*scene, *est, x, y, 43, uint64_t(s), nullptr, nullptr);
+        m2 += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
+        g.clear();
+        traceSample(*scene, *est, x, y, 47, uint64_t(s), &w, &g);
+        for (size_t j = 0; j < q.size(); ++j) sum[j] += sumEntries(g, uint32_t(j));
+      }
+    measured.add(m2);
+    for (size_t j = 0; j < q.size(); ++j) visitor[j].add(sum[j]);
+  }
+  std::printf("E[F^2] with roulette %.5e (se %.1e), closed form %.5e (se %.1e)\n", measured.mean, measured.se(), closed.mean, closed.se());
+  EXPECT_NEAR(measured.mean, closed.mean, test::kSigmas * std::hypot(measured.se(), closed.se()));
+  for (size_t j = 0; j < 4; ++j) {  // q_4 only gates emission at vertex 5, and the box's light is a point
+    const double se = std::hypot(visitor[j].se(), closedD[j].se());
+    std::printf("survival after vertex %zu: dE[F^2]/dq %+.5e (se %.1e), closed form %+.5e (se %.1e)\n", j, visitor[j].mean, visitor[j].se(),
+                closedD[j].mean, closedD[j].se());
+    EXPECT_NEAR(visitor[j].mean, closedD[j].mean, test::kSigmas * se) << "survival " << j;
+    if (j < 3) {
+      EXPECT_LT(test::kSigmas * se, 0.1 * std::abs(closedD[j].mean)) << "survival " << j << ": the comparison has no power";
+    }
+  }
 }
 
 // The engine's gradient of the whole variance-aware loss, mean over seeds, against central
