@@ -220,16 +220,23 @@ void setGlobalSelection(Scene& s, double pSpot) {
   s.updateLightSelection();
 }
 
-BenchReport benchSpot(const VarianceBenchArgs& a) {
-  BenchReport rep("variance");
-  rep.text("scene", "spot");
-  v1::JobSpec job = zooJob("spot");
-  if (a.spotSteps > 0) job.mutable_optimization()->set_steps(a.spotSteps);
-  Problem p = buildProblem(job);
-  if (p.scene->lights.size() != 2) throw std::logic_error("bench variance: spot should have two lights");
+// Runs a zoo job in this process (`steps` > 0 overrides its steps); leaves its result in p's scene.
+LocalRunResult optimiseZooJob(const std::string& name, int steps, Problem& p, BenchReport& rep) {
+  v1::JobSpec job = zooJob(name);
+  if (steps > 0) job.mutable_optimization()->set_steps(steps);
+  p = buildProblem(job);
   auto t0 = Clock::now();
   LocalRunResult res = runLocally(p);
   rep.number("optimisation_seconds", since(t0), "s (" + std::to_string(p.steps) + " steps)");
+  return res;
+}
+
+BenchReport benchSpot(const VarianceBenchArgs& a) {
+  BenchReport rep("variance");
+  rep.text("scene", "spot");
+  Problem p;
+  LocalRunResult res = optimiseZooJob("spot", a.spotSteps, p, rep);
+  if (p.scene->lights.size() != 2) throw std::logic_error("bench variance: spot should have two lights");
   const int spp = a.measureSpp;
   const uint64_t stream = streamSeed(a.seed, Stream::VarianceMap);
   auto meanVariance = [&] { return besselVariance(tracePass(p, 0, stream, 0, spp, nullptr, true), spp, nullptr); };
@@ -301,12 +308,8 @@ BenchReport benchSpot(const VarianceBenchArgs& a) {
 BenchReport benchRoulette(const VarianceBenchArgs& a) {
   BenchReport rep("variance");
   rep.text("scene", "roulette");
-  v1::JobSpec job = zooJob("roulette");
-  if (a.rouletteSteps > 0) job.mutable_optimization()->set_steps(a.rouletteSteps);
-  Problem p = buildProblem(job);
-  auto t0 = Clock::now();
-  LocalRunResult res = runLocally(p);
-  rep.number("optimisation_seconds", since(t0), "s (" + std::to_string(p.steps) + " steps)");
+  Problem p;
+  LocalRunResult res = optimiseZooJob("roulette", a.rouletteSteps, p, rep);
   std::string q;
   for (float x : p.scene->sampling.survival) q += (q.empty() ? "" : ", ") + BenchReport::fmt(x);
   rep.value("survival", std::vector<float>(p.scene->sampling.survival), q);

@@ -56,24 +56,39 @@ TEST(Service, SubmitCompleteFetchMatchesInProcessBitForBit) {
   EXPECT_TRUE(again.back().has_final());
 }
 
+// Runs `job` to its end on a fresh server with `workers` one-thread workers: its events, final
+// parameters and status.
+struct ClusterRun {
+  std::vector<v1::ProgressEvent> events;
+  std::vector<float> theta;
+  v1::JobStatus status;
+};
+ClusterRun runOnWorkers(const v1::JobSpec& job, int workers) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  for (int w = 0; w < workers; ++w) c.startWorker(1);
+  std::string id;
+  ClusterRun run;
+  EXPECT_TRUE(c.submit(job, &id).ok());
+  run.events = c.watch(id);
+  if (run.events.empty()) {
+    ADD_FAILURE() << "the job sent no events";
+    return run;
+  }
+  EXPECT_EQ(run.events.back().final().state(), v1::SUCCEEDED) << run.events.back().final().reason();
+  run.theta = c.checkpointTheta(id);
+  run.status = c.get(id);
+  return run;
+}
+
 TEST(Service, TwoWorkersGiveTheSameParametersAsOne) {
   // Two shards, mini-batches of 4 of the 16 views: each shard sees a different subset per step.
   v1::JobSpec job = smallJob("backlit", 3);
   job.mutable_optimization()->set_shards(2);
   job.mutable_optimization()->set_target_spp(2);
   std::vector<float> theta[2];
-  for (int workers = 1; workers <= 2; ++workers) {
-    TempDir tmp;
-    Cluster c(tmp.path / std::to_string(workers));
-    fs::create_directories(tmp.path / std::to_string(workers));
-    c.startServer();
-    for (int w = 0; w < workers; ++w) c.startWorker(1);
-    std::string id;
-    ASSERT_TRUE(c.submit(job, &id).ok());
-    auto evs = c.watch(id);
-    ASSERT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-    theta[workers - 1] = c.checkpointTheta(id);
-  }
+  for (int workers = 1; workers <= 2; ++workers) theta[workers - 1] = runOnWorkers(job, workers).theta;
   EXPECT_EQ(theta[0], theta[1]);
   EXPECT_EQ(theta[0], inProcess(job));
 }
@@ -89,16 +104,9 @@ TEST(Service, VarianceJobsMatchInProcessWithAnyWorkerCount) {
   o->mutable_variance()->set_samples(4);
   std::vector<float> theta[2];
   for (int workers = 1; workers <= 2; ++workers) {
-    TempDir tmp;
-    Cluster c(tmp.path / std::to_string(workers));
-    fs::create_directories(tmp.path / std::to_string(workers));
-    c.startServer();
-    for (int w = 0; w < workers; ++w) c.startWorker(1);
-    std::string id;
-    ASSERT_TRUE(c.submit(job, &id).ok());
-    auto evs = c.watch(id);
-    ASSERT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-    theta[workers - 1] = c.checkpointTheta(id);
+    ClusterRun run = runOnWorkers(job, workers);
+    theta[workers - 1] = run.theta;
+    const auto& evs = run.events;
     int steps = 0;
     for (const auto& e : evs) {
       if (!e.has_step()) continue;
@@ -110,8 +118,8 @@ TEST(Service, VarianceJobsMatchInProcessWithAnyWorkerCount) {
       EXPECT_GT(sp.variance_seconds(), 0.0);
     }
     EXPECT_EQ(steps, 3);
-    v1::JobStatus st = c.get(id);
-    EXPECT_NE(std::find(st.results().begin(), st.results().end(), "variance_view0.exr"), st.results().end());
+    const auto& results = run.status.results();
+    EXPECT_NE(std::find(results.begin(), results.end(), "variance_view0.exr"), results.end());
   }
   EXPECT_EQ(theta[0], theta[1]);
   EXPECT_EQ(theta[0], inProcess(job));
@@ -121,18 +129,11 @@ TEST(Service, SamplingParameterJobsWriteTheirSelectionMaps) {
   v1::JobSpec job = zooJob("spot");
   job.mutable_optimization()->set_steps(2);
   job.mutable_optimization()->set_target_spp(4);
-  TempDir tmp;
-  Cluster c(tmp.path);
-  c.startServer();
-  c.startWorker(2);
-  std::string id;
-  ASSERT_TRUE(c.submit(job, &id).ok());
-  auto evs = c.watch(id);
-  ASSERT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
-  EXPECT_EQ(c.checkpointTheta(id), inProcess(job));
-  v1::JobStatus st = c.get(id);
+  ClusterRun run = runOnWorkers(job, 1);
+  EXPECT_EQ(run.theta, inProcess(job));
+  const auto& results = run.status.results();
   for (const char* f : {"light_selection.csv", "selection_view0.exr", "variance_view0.exr", "parameters.json"})
-    EXPECT_NE(std::find(st.results().begin(), st.results().end(), f), st.results().end()) << f;
+    EXPECT_NE(std::find(results.begin(), results.end(), f), results.end()) << f;
 }
 
 // Runs backlit (two shards) on two workers, disturbs one after step `after`, and returns every

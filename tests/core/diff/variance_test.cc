@@ -492,9 +492,7 @@ TEST(Variance, VarianceAwareLossGradientMatchesFiniteDifferencesOfTheLoss) {
   auto scene = test::sceneFromJson(kGlossy);
   ParameterRegistry reg;
   reg.add(*scene, "materials/metal/roughness");
-  GradientOptions o;
-  o.method = GradientMethod::Pt;
-  o.maxDepth = 1;
+  GradientOptions o = directPt();
   o.sppPrimal = o.sppGradient = 16;
   o.variance.enabled = true;
   o.variance.samples = 16;
@@ -519,8 +517,7 @@ TEST(Variance, TimeAwareLossGradientMatchesFiniteDifferencesOfTheLoss) {
   scene->sampling.survival = {1.f, 0.8f, 0.6f, 0.7f, 0.9f};
   ParameterRegistry reg;
   reg.add(*scene, "sampling/rr_survival");
-  GradientOptions o;
-  o.method = GradientMethod::Pt;
+  GradientOptions o = directPt();
   o.maxDepth = 5;
   o.sppPrimal = o.sppGradient = 64;
   o.variance.enabled = true;
