@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package that invr's build, tests, demo and charts need (clang and its
-# runtime libraries for the fuzz targets of deploy/fuzz.sh: libFuzzer is in libclang-rt-14-dev).
+# runtime libraries for the fuzz targets of deploy/fuzz.sh: libFuzzer is in libclang-rt-14-dev;
+# Slurm and munge for the real-Slurm test of deploy/slurm/invr.sbatch).
 # Idempotent and non-interactive; run as root (or through sudo).
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
@@ -19,6 +20,7 @@ PACKAGES=(
   libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev nlohmann-json3-dev libpugixml-dev
   python3 python3-grpcio python3-matplotlib
   clang libclang-rt-14-dev
+  slurm-wlm munge
 )
 
 missing=()
