@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # deploy/slurm/invr.sbatch on a real Slurm: munged, slurmctld and slurmd (Debian's slurm-wlm and
 # munge) configured in a temporary directory, started here and stopped on exit; a small job goes
-# through `sbatch --wait` with a bounded timeout and must succeed with its results in place.
+# through `sbatch --wait` with a bounded timeout and must succeed with its results in place; a
+# second one is requeued mid-run and must resume from its checkpoint and succeed.
 # Skips, saying why, only where Slurm cannot start (not root, packages missing).
 #   bash tests/deploy/slurm.sh BIN_DIR
 set -euo pipefail
@@ -98,4 +99,35 @@ done
 workers=$(grep -c "threads) connected" "$ROOT/work/out/server.log" || true)
 [ "$workers" -ge 2 ] || { dump; echo "slurm: expected 2 workers, the server saw $workers"; exit 1; }
 cat "$ROOT"/work/invr-*.log
-echo "slurm: ok (batch job succeeded on $workers workers; results in place)"
+echo "slurm: first job ok ($workers workers; results in place)"
+
+# Requeue mid-job: the batch job restarts with the same id, the server finds the job in its store
+# and resumes from the last checkpoint, and the same request id finds that job again.
+id=$(sbatch --parsable --ntasks=1 --cpus-per-task=1 --open-mode=append --output="$ROOT/work/requeue-%j.log" \
+  --export=ALL,INVR_BIN="$BIN",INVR_PORT="$(free_port)",INVR_ARGS="--steps 200 --target-spp 4" \
+  "$REPO/deploy/slurm/invr.sbatch" cornell "$ROOT/work/requeue")
+log="$ROOT/work/requeue-$id.log"
+for _ in $(seq 1 240); do
+  grep -qE '^step (2[0-9]|[3-9][0-9]|[0-9]{3})/' "$log" 2> /dev/null && break
+  sleep 0.5
+done
+grep -qE '^step [0-9]+/200' "$log" || { dump; cat "$log"; echo "slurm: the second job never reached step 20"; exit 1; }
+scontrol requeue "$id"
+echo "slurm: requeued batch job $id mid-run"
+state=""
+t0=$SECONDS
+for _ in $(seq 1 600); do
+  info=$(scontrol show job "$id" 2> /dev/null || true)
+  state=$(grep -oE 'JobState=[A-Z_]+' <<< "$info" | cut -d= -f2 || true)
+  case "$state" in COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY) break ;; esac
+  # Slurm holds a requeued job back (Reason=BeginTime) before it may start again: start it now.
+  if grep -q 'Reason=BeginTime' <<< "$info"; then scontrol update JobId="$id" StartTime=now > /dev/null 2>&1 || true; fi
+  sleep 1
+done
+echo "slurm: the requeued job ended $state $((SECONDS - t0)) s after the requeue"
+cat "$log"
+[ "$state" = COMPLETED ] || { dump; echo "slurm: the requeued job ended $state"; exit 1; }
+grep -q "resumed from checkpoint" "$ROOT/work/requeue/server.log" "$log" || { dump; echo "slurm: the requeued job did not resume from its checkpoint"; exit 1; }
+[ "$(grep -c '^invr.sbatch: job job-000001 on' "$log")" -eq 2 ] || { echo "slurm: the requeued run submitted a new job instead of finding its own"; exit 1; }
+[ -s "$ROOT/work/requeue/results/parameters.json" ] || { dump; echo "slurm: the requeued job's results are missing"; exit 1; }
+echo "slurm: ok (batch job succeeded on $workers workers; a requeued job resumed from its checkpoint)"
