@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
   app.add_option("--address", o.address, "listen address; port 0 picks a free one")->capture_default_str();
   app.add_option("--port-file", portFile, "write the port listened on to this file");
   app.add_option("--max-queued", o.maxQueued, "jobs waiting beyond this are refused (RESOURCE_EXHAUSTED)")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-running-jobs", o.maxRunningJobs, "jobs that run at once, sharing the workers by priority; more wait in the queue")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
   app.add_option("--lease-seconds", o.leaseSeconds, "a task unanswered this long is reassigned")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--heartbeat-timeout", o.heartbeatTimeoutSeconds, "a worker silent this long is presumed gone")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--max-attempts", o.maxAttempts, "attempts per shard and step before a job fails")->capture_default_str()->check(CLI::PositiveNumber);

@@ -1,9 +1,14 @@
 // invr-server: accepts optimisation jobs from clients, farms each step's shards of views to the
 // workers that dialled in (sticky, leased), applies the optimiser, checkpoints and reports progress.
+// Several jobs run at once and share the workers.
+//
+// Parts: ClientService and WorkerService (gRPC callbacks), Admission (validation, plan, memory),
+// JobBook (records, events, queue, watchers), Scheduler (workers, leases, fair share) and
+// JobRunner (one job's step loop), over JobStore and AssetStore.
 //
 // Threads: gRPC's callback threads only move messages and touch in-memory state; job validation
-// runs on a control thread and the step loop on the runner thread, so no rendering or disk-heavy
-// work ever happens inside a callback.
+// runs on a control thread and each running job's step loop on a runner thread, so no rendering
+// or disk-heavy work ever happens inside a callback.
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -18,6 +23,7 @@ struct ServerOptions {
   std::filesystem::path storeDir = "invr-store";
   std::string address = "127.0.0.1:0";  // loopback unless told otherwise; port 0 picks one
   int maxQueued = 16;                    // queued jobs beyond this: RESOURCE_EXHAUSTED
+  int maxRunningJobs = 4;                // jobs running at once, sharing the workers (fair share by priority)
   double leaseSeconds = 600;             // a task not answered by then is reassigned
   double heartbeatTimeoutSeconds = 10;   // a silent worker is presumed gone
   int maxAttempts = 3;                   // per shard and step, before the job fails

@@ -181,6 +181,10 @@ void walkAssets(google::protobuf::Message& m, const std::string& path,
 void validateJobSpec(const v1::JobSpec& job) {
   checkBounds(job, "");
   if (job.has_render()) validateRenderSettings(job.render());
+  if (job.scheduling().priority() > 100)
+    throw InputError("scheduling.priority: " + std::to_string(job.scheduling().priority()) + " (expected 1..100, or 0 for the default 1)");
+  if (job.scheduling().max_workers() > 4096)
+    throw InputError("scheduling.max_workers: " + std::to_string(job.scheduling().max_workers()) + " (expected 0..4096; 0: no cap)");
 }
 
 void forEachAssetRef(v1::JobSpec& job, const std::function<void(v1::AssetRef&, const std::string&)>& fn) {

@@ -1,0 +1,173 @@
+#include "server/client_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include "server/file_sender.h"
+#include "server/write_queue.h"
+
+namespace invr::server {
+
+namespace v1 = invr::v1;
+
+namespace {
+
+// A client's WatchJob stream.
+class Watcher final : public grpc::ServerWriteReactor<v1::ProgressEvent>, public EventSink {
+ public:
+  Watcher(JobBook& book, std::string job) : book_(book), job_(std::move(job)), out_(this) {}
+  void push(const v1::ProgressEvent& e) override { out_.push(e, e.has_final()); }
+  void close(grpc::Status st) override { out_.close(st); }
+  void OnWriteDone(bool ok) override { out_.done(ok); }
+  void OnCancel() override { out_.close(grpc::Status::CANCELLED); }
+  void OnDone() override {
+    book_.unwatch(job_, this);
+    delete this;
+  }
+
+ private:
+  JobBook& book_;
+  std::string job_;
+  WriteQueue<Watcher, v1::ProgressEvent> out_;
+};
+
+class Uploader final : public grpc::ServerReadReactor<v1::AssetChunk> {
+ public:
+  Uploader(const AssetStore& assets, uint64_t maxBytes, v1::AssetInfo* info) : info_(info), up_(assets, maxBytes), max_(maxBytes) {
+    StartRead(&chunk_);
+  }
+  void OnReadDone(bool ok) override {
+    if (ok) {
+      if (!up_.append(chunk_.data()))
+        return Finish(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                   "upload: larger than the server's limit of " + std::to_string(max_) + " bytes"));
+      return StartRead(&chunk_);
+    }
+    try {
+      info_->set_size(up_.size());
+      info_->set_sha256(up_.commit());
+      Finish(grpc::Status::OK);
+    } catch (const std::exception& e) {
+      Finish(grpc::Status(grpc::StatusCode::INTERNAL, e.what()));
+    }
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  v1::AssetInfo* info_;
+  v1::AssetChunk chunk_;
+  AssetStore::Upload up_;
+  uint64_t max_;
+};
+
+grpc::ServerUnaryReactor* finish(grpc::CallbackServerContext* ctx, grpc::Status st) {
+  auto* reactor = ctx->DefaultReactor();
+  reactor->Finish(std::move(st));
+  return reactor;
+}
+
+}  // namespace
+
+ClientService::ClientService(JobBook& book, const Admission& admission, PreparedProblem& prepared, Scheduler& scheduler,
+                             AssetStore& assets, uint64_t maxAssetBytes, ControlQueue& control)
+    : book_(book),
+      admission_(admission),
+      prepared_(prepared),
+      scheduler_(scheduler),
+      assets_(assets),
+      maxAssetBytes_(maxAssetBytes),
+      control_(control) {}
+
+grpc::ServerReadReactor<v1::AssetChunk>* ClientService::UploadAsset(grpc::CallbackServerContext*, v1::AssetInfo* info) {
+  return new Uploader(assets_, maxAssetBytes_, info);
+}
+
+grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
+                                                   v1::SubmitJobResponse* resp) {
+  if (req->request_id().size() > 256)  // it is stored with the job and kept in memory
+    return finish(ctx, grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                    "request_id: " + std::to_string(req->request_id().size()) + " bytes long (limit 256)"));
+  if (auto existing = book_.jobOfRequest(req->request_id())) {  // a retry: the same job, not a second one
+    resp->set_job_id(*existing);
+    resp->set_existing(true);
+    return finish(ctx, grpc::Status::OK);
+  }
+  if (grpc::Status room = book_.roomInQueue(); !room.ok()) return finish(ctx, room);
+  auto* reactor = ctx->DefaultReactor();
+  // Building the problem loads meshes and textures: not on a gRPC thread.
+  control_.post([this, reactor, req, resp] {
+    grpc::Status st;
+    try {
+      st = submit(*req, *resp);
+    } catch (const std::exception& e) {  // the store's disk, not the job: say so, keep serving
+      st = grpc::Status(grpc::StatusCode::INTERNAL, std::string("job store: ") + e.what());
+    }
+    reactor->Finish(st);
+  });
+  return reactor;
+}
+
+grpc::Status ClientService::submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
+  v1::JobSpec spec = req.spec();
+  std::unique_ptr<Problem> validated;
+  if (grpc::Status st = admission_.admit(spec, nullptr, &validated); !st.ok()) return st;
+  std::string id;
+  bool existing = false;
+  if (grpc::Status st = book_.add(spec, req.request_id(), &id, &existing); !st.ok()) return st;
+  resp.set_job_id(id);
+  resp.set_existing(existing);
+  if (!existing) prepared_.offer(id, std::move(validated));
+  return grpc::Status::OK;
+}
+
+grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ctx, const v1::PlanJobRequest* req, v1::JobPlan* resp) {
+  auto* reactor = ctx->DefaultReactor();
+  // Building the problem loads meshes and textures: not on a gRPC thread.
+  control_.post([this, reactor, req, resp] {
+    v1::JobSpec spec = req->spec();
+    grpc::Status st;
+    try {
+      st = admission_.admit(spec, resp);
+    } catch (const std::exception& e) {
+      st = grpc::Status(grpc::StatusCode::INTERNAL, e.what());
+    }
+    reactor->Finish(st);
+  });
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* ClientService::GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req, v1::JobStatus* resp) {
+  return finish(ctx, book_.status(req->job_id(), resp));
+}
+
+grpc::ServerUnaryReactor* ClientService::ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*, v1::ListJobsResponse* resp) {
+  for (auto& s : book_.list()) *resp->add_jobs() = std::move(s);
+  return finish(ctx, grpc::Status::OK);
+}
+
+grpc::ServerUnaryReactor* ClientService::CancelJob(grpc::CallbackServerContext* ctx, const v1::CancelJobRequest* req, v1::JobStatus* resp) {
+  bool wasQueued = false;
+  grpc::Status st = book_.cancel(req->job_id(), resp, &wasQueued);
+  if (wasQueued) prepared_.drop(req->job_id());
+  scheduler_.wake();  // a running job's runner sees the request now, not at its next poll
+  return finish(ctx, st);
+}
+
+grpc::ServerWriteReactor<v1::ProgressEvent>* ClientService::WatchJob(grpc::CallbackServerContext*, const v1::WatchJobRequest* req) {
+  auto* w = new Watcher(book_, req->job_id());
+  if (grpc::Status st = book_.watch(req->job_id(), req->from_sequence(), w); !st.ok()) w->close(st);
+  return w;
+}
+
+grpc::ServerWriteReactor<v1::AssetChunk>* ClientService::FetchResult(grpc::CallbackServerContext*, const v1::FetchResultRequest* req) {
+  std::filesystem::path path;
+  if (grpc::Status st = book_.resultPath(req->job_id(), req->name(), &path); !st.ok()) return new FailedFileSender(st);
+  return new FileSender(path);
+}
+
+grpc::ServerUnaryReactor* ClientService::ListWorkers(grpc::CallbackServerContext* ctx, const v1::ListWorkersRequest*,
+                                                     v1::ListWorkersResponse* resp) {
+  for (auto& w : scheduler_.workers()) *resp->add_workers() = std::move(w);
+  return finish(ctx, grpc::Status::OK);
+}
+
+}  // namespace invr::server

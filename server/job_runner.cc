@@ -1,0 +1,365 @@
+#include "server/job_runner.h"
+
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/image/image.h"
+#include "core/optim/optimization_loop.h"
+#include "core/optim/results_io.h"
+#include "proto/wire/sha256.h"
+
+namespace invr::server {
+
+namespace v1 = invr::v1;
+
+namespace {
+
+std::string fmtDouble(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", v);
+  return b;
+}
+
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// SHA-256 of the spec's deterministic serialization: how later tasks name the spec a worker holds.
+std::string specHash(const v1::JobSpec& spec) {
+  std::string bytes;
+  {
+    google::protobuf::io::StringOutputStream raw(&bytes);
+    google::protobuf::io::CodedOutputStream coded(&raw);
+    coded.SetSerializationDeterministic(true);
+    spec.SerializeToCodedStream(&coded);
+  }
+  Sha256 h;
+  h.update(bytes.data(), bytes.size());
+  return h.hex();
+}
+
+// The spec is added per worker by the scheduler (once per connection).
+v1::Task baseTask(const std::string& job, size_t shard, const std::vector<float>& theta) {
+  v1::Task t;
+  t.set_job_id(job);
+  t.set_shard(uint32_t(shard));
+  t.mutable_theta()->Assign(theta.begin(), theta.end());
+  return t;
+}
+
+Image fromWire(const v1::FloatImage& fi, bool* ok) {
+  Image im(fi.width(), fi.height(), fi.channels());
+  *ok = size_t(fi.pixels_size()) == im.data().size();
+  if (*ok) std::copy(fi.pixels().begin(), fi.pixels().end(), im.data().begin());
+  return im;
+}
+
+}  // namespace
+
+struct JobRunner::Context {
+  std::string id;
+  v1::JobSpec spec;
+  Problem p;
+  std::vector<float> theta;
+  v1::Checkpoint ck;
+  bool haveCheckpoint = false;
+  bool problemBuilt = false;
+};
+
+JobRunner::JobRunner(RunnerOptions options, JobStore& store, JobBook& book, Scheduler& scheduler, const Admission& admission,
+                     PreparedProblem& prepared, const std::atomic<bool>& stopping)
+    : opt_(options), store_(store), book_(book), scheduler_(scheduler), admission_(admission), prepared_(prepared), stopping_(stopping) {}
+
+void JobRunner::run(const std::string& id) {
+  Context c;
+  c.id = id;
+  c.spec = book_.spec(id);
+  bool scheduled = false;
+  try {
+    if (auto validated = prepared_.take(id))
+      c.p = std::move(*validated);  // built when it was submitted
+    else
+      c.p = admission_.build(c.spec);
+    c.problemBuilt = true;
+    ScheduledJob sj;
+    sj.id = id;
+    sj.spec = c.spec;
+    sj.specHash = specHash(c.spec);
+    sj.shape.parameters = c.p.params.size();
+    sj.shape.width = c.p.scene->width;
+    sj.shape.height = c.p.scene->height;
+    sj.shards = c.p.shards.size();
+    // A worker that takes over a shard mid-job rebuilds its reservoirs with render-only steps.
+    sj.rebuildBurnIn = c.p.gradient.method == GradientMethod::Restir ? uint32_t(std::max(c.p.burnIn, 1)) : 0;
+    sj.priority = std::max<uint32_t>(1, c.spec.scheduling().priority());
+    sj.maxWorkers = c.spec.scheduling().max_workers();
+    sj.log = [this, id](const std::string& m) { book_.log(id, m); };
+    sj.cancelled = [this, id] { return book_.cancelRequested(id); };
+    scheduler_.addJob(std::move(sj));
+    scheduled = true;
+    runSteps(c);
+    writeResults(c);
+    scheduler_.removeJob(id);
+    return;
+  } catch (const JobCancelled&) {
+    if (scheduled) scheduler_.removeJob(id);
+    if (stopping_ && !book_.cancelRequested(id)) return;  // server shutting down: the job resumes on restart
+    book_.end(id, v1::CANCELLED, "cancelled by request");
+    return;
+  } catch (const JobFailed& f) {
+    if (scheduled) scheduler_.removeJob(id);
+    fail(c, f.reason);
+  } catch (const InputError& e) {
+    if (scheduled) scheduler_.removeJob(id);
+    fail(c, e.what());
+  } catch (const std::exception& e) {
+    if (scheduled) scheduler_.removeJob(id);
+    fail(c, std::string("internal error: ") + e.what());
+  }
+}
+
+void JobRunner::runSteps(Context& c) {
+  const std::string& id = c.id;
+  Problem& p = c.p;
+  const std::string method = gradientMethodName(p.gradient.method);
+  auto saved = store_.loadCheckpoint(id);
+  OptimizerState state;
+  uint64_t counter = 0, step = 0;
+  double secondsBefore = 0;
+  if (saved) {
+    c.ck = *saved;
+    c.haveCheckpoint = true;
+    c.theta.assign(c.ck.theta().begin(), c.ck.theta().end());
+    state.m.assign(c.ck.adam_m().begin(), c.ck.adam_m().end());
+    state.v.assign(c.ck.adam_v().begin(), c.ck.adam_v().end());
+    state.step = c.ck.optimizer_step();
+    counter = c.ck.counter();
+    step = c.ck.step();
+    secondsBefore = c.ck.seconds();
+  } else {
+    // Step 0 is a checkpoint too: a job that diverges on its first step still has one to keep.
+    c.theta = p.initial;
+    c.ck.set_step(0);
+    c.ck.set_counter(0);
+    c.ck.mutable_theta()->Assign(c.theta.begin(), c.theta.end());
+    store_.saveCheckpoint(id, c.ck);
+    c.haveCheckpoint = true;
+  }
+  if (c.theta.size() != p.params.size()) throw JobFailed{"checkpoint does not match the job's parameters"};
+  book_.started(id, step, uint64_t(p.steps), method);
+  {
+    std::ostringstream msg;
+    if (saved)
+      msg << "resumed from checkpoint at step " << step << "/" << p.steps;
+    else
+      msg << "started: " << p.params.size() << " parameter values, " << p.steps << " steps, method " << method << ", "
+          << p.scene->cameras.size() << " views in " << p.shards.size() << " shards";
+    const uint32_t prio = std::max<uint32_t>(1, c.spec.scheduling().priority());
+    if (prio != 1 || c.spec.scheduling().max_workers())
+      msg << " (priority " << prio << (c.spec.scheduling().max_workers() ? ", at most " + std::to_string(c.spec.scheduling().max_workers()) + " workers" : "")
+          << ")";
+    book_.log(id, msg.str());
+  }
+  LoopState start;
+  start.theta = c.theta;
+  start.optimizer = state;
+  start.counter = counter;
+  start.step = step;
+  OptimizationLoop loop(p, std::move(start), p.burnIn, p.steps);
+  auto runStart = Clock::now();
+  uint64_t stepsThisRun = 0;
+  Clock::time_point firstStepDone = runStart, lastStepDone = runStart;
+  // The shards go to workers; the loop sums their results in shard order, as in process.
+  double wall = 0, slowest = 0;
+  auto evaluateOnWorkers = [&](const Evaluation& e, const std::vector<float>& at) {
+    std::vector<std::optional<v1::Task>> tasks(p.shards.size());
+    for (size_t s = 0; s < p.shards.size(); ++s) {
+      GradientRequest r = shardRequest(p, e, s);
+      if (r.views.empty()) continue;
+      v1::Task t = baseTask(id, s, at);
+      t.set_kind(v1::Task::GRADIENT);
+      t.mutable_views()->Assign(r.views.begin(), r.views.end());
+      t.set_batch_views(uint32_t(r.batchViews));
+      t.set_all_shard_views(r.allSessionViews);
+      t.set_counter(e.counter);
+      t.set_render_only(e.renderOnly);
+      tasks[s] = std::move(t);
+    }
+    auto t0 = Clock::now();
+    auto results = scheduler_.run(id, tasks);
+    wall = secondsSince(t0);
+    slowest = 0;
+    std::vector<std::optional<GradientResult>> out(results.size());
+    for (size_t s = 0; s < results.size(); ++s) {
+      const auto& r = results[s];
+      if (!r) continue;
+      GradientResult g;
+      g.gradient.assign(r->gradient().begin(), r->gradient().end());
+      g.stats.loss = r->loss();
+      g.stats.nonFiniteSamples = r->non_finite();
+      g.stats.secondsPrimal = r->seconds_primal();
+      g.stats.secondsDerivative = r->seconds_derivative();
+      g.stats.secondsReservoirUpdate = r->seconds_reservoir();
+      g.stats.secondsStage1 = r->seconds_stage1();
+      g.stats.biasTerm = r->bias_term();
+      g.stats.varianceTerm = r->variance_term();
+      g.stats.cost = r->cost();
+      g.stats.secondsVariance = r->seconds_variance();
+      g.stats.reservoirs = r->reservoirs();
+      g.stats.meanM = r->mean_m();
+      g.stats.meanNeighbours = r->mean_neighbours();
+      slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session() +
+                                      r->seconds_stage1() + r->seconds_variance());
+      out[s] = std::move(g);
+    }
+    return out;
+  };
+  while (!loop.done()) {
+    const bool burnIn = loop.burningIn();
+    std::optional<GradientResult> g;
+    try {
+      g = loop.next(evaluateOnWorkers);
+    } catch (const InputError& err) {  // divergence: the loop kept the last good state
+      throw JobFailed{std::string(err.what()) + "; the last good checkpoint (step " + std::to_string(loop.state().step) + ") is kept"};
+    }
+    if (burnIn) {
+      const uint64_t k = loop.state().counter;
+      if (k == 1 || k == uint64_t(p.burnIn))
+        book_.log(id, "burn-in " + std::to_string(k) + "/" + std::to_string(p.burnIn) + " (render-only steps that fill the reservoirs)");
+      continue;
+    }
+    auto u0 = Clock::now();
+    const LoopState& ls = loop.state();
+    c.theta = ls.theta;
+    ++stepsThisRun;
+    // Rates from the steps after this run's first (which includes building sessions and targets).
+    if (stepsThisRun == 1) firstStepDone = Clock::now();
+    double seconds = secondsBefore + secondsSince(runStart);
+    c.ck.set_step(ls.step);
+    c.ck.set_counter(ls.counter);
+    c.ck.mutable_theta()->Assign(ls.theta.begin(), ls.theta.end());
+    c.ck.mutable_adam_m()->Assign(ls.optimizer.m.begin(), ls.optimizer.m.end());
+    c.ck.mutable_adam_v()->Assign(ls.optimizer.v.begin(), ls.optimizer.v.end());
+    c.ck.set_optimizer_step(ls.optimizer.step);
+    c.ck.set_seconds(seconds);
+    store_.saveCheckpoint(id, c.ck);  // before the progress event: the log never runs ahead of it
+    double perStep = stepsThisRun == 1 ? wall : secondsSince(firstStepDone) / double(stepsThisRun - 1);
+    const GradientStats& st = g->stats;
+    v1::StepProgress sp;
+    sp.set_render_seconds(st.secondsPrimal);
+    sp.set_derivative_seconds(st.secondsDerivative);
+    sp.set_reservoir_seconds(st.secondsReservoirUpdate);
+    sp.set_stage1_seconds(st.secondsStage1);
+    if (p.gradient.variance.enabled) {
+      sp.set_bias_term(st.biasTerm);
+      sp.set_variance_term(st.varianceTerm);
+      sp.set_cost(st.cost);
+      sp.set_variance_seconds(st.secondsVariance);
+    }
+    sp.set_reservoirs(st.reservoirs);
+    sp.set_mean_m(st.meanM);
+    sp.set_mean_neighbours(st.meanNeighbours);
+    sp.set_step(ls.step);
+    sp.set_steps(uint64_t(p.steps));
+    sp.set_loss(st.loss);
+    sp.set_param_error(p.groundTruthKnown() ? parameterError(p, ls.theta) : -1.0);
+    sp.set_seconds(seconds);
+    sp.set_steps_per_second(1.0 / perStep);
+    sp.set_eta_seconds(perStep * double(uint64_t(p.steps) - ls.step));
+    sp.set_non_finite(st.nonFiniteSamples);
+    sp.set_transport_seconds(std::max(0.0, wall - slowest));
+    sp.set_update_seconds(secondsSince(u0));
+    book_.stepDone(id, sp, scheduler_.workerSeconds(id), scheduler_.workersOf(id));
+    if (onStep) onStep(secondsSince(lastStepDone));
+    lastStepDone = Clock::now();
+    spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, ls.step, sp.loss(), sp.param_error(),
+                 sp.steps_per_second());
+  }
+}
+
+void JobRunner::copyLog(const std::string& id, std::vector<std::string>& files) {
+  std::error_code ec;
+  std::filesystem::copy_file(store_.jobDir(id) / "progress.jsonl", store_.resultsDir(id) / "progress.jsonl",
+                             std::filesystem::copy_options::overwrite_existing, ec);
+  if (!ec) files.push_back("progress.jsonl");
+}
+
+void JobRunner::fail(Context& c, const std::string& reason) {
+  std::vector<std::string> files;
+  // The last good parameters stay fetchable, next to the log.
+  if (c.problemBuilt && c.haveCheckpoint && c.p.params.size() == size_t(c.ck.theta_size())) {
+    try {
+      files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()));
+    } catch (const std::exception&) {
+    }
+  }
+  copyLog(c.id, files);
+  book_.end(c.id, v1::FAILED, reason, &files);
+}
+
+void JobRunner::writeResults(Context& c) {
+  const std::string& id = c.id;
+  Problem& p = c.p;
+  auto dir = store_.resultsDir(id);
+  std::filesystem::create_directories(dir);
+  std::vector<std::string> files = writeParameters(dir, p.params, c.theta);
+  {
+    // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
+    std::ofstream out(dir / "convergence.csv");
+    out << kConvergenceCsvHeader << "\n";
+    std::map<uint64_t, std::string> rows;
+    for (const auto& e : store_.loadEvents(id))
+      if (e.has_step())
+        rows[e.step().step()] = gradientMethodName(p.gradient.method) + std::string(",") + std::to_string(e.step().step()) + "," +
+                                std::to_string(e.step().seconds()) + "," + fmtDouble(e.step().loss()) + "," + fmtDouble(e.step().param_error());
+    for (auto& [k, r] : rows) out << r << "\n";
+    files.push_back("convergence.csv");
+  }
+  // Charts are the client's: `invr fetch` and `invr run` draw convergence.png from this CSV.
+  // Final renders (and the targets beside them) from the workers.
+  book_.log(id, "rendering final images");
+  std::vector<std::optional<v1::Task>> tasks(p.shards.size());
+  for (size_t s = 0; s < p.shards.size(); ++s) {
+    v1::Task t = baseTask(id, s, c.theta);
+    t.set_kind(v1::Task::FINAL_RENDER);
+    t.set_final_spp(opt_.finalSpp);
+    for (int v : p.shards[s])
+      if (v < opt_.finalViews) t.add_views(v);
+    if (t.views_size() > 0) tasks[s] = std::move(t);
+  }
+  auto results = scheduler_.run(id, tasks);
+  for (size_t s = 0; s < results.size(); ++s) {
+    if (!results[s]) continue;
+    const auto& r = *results[s];
+    int nv = tasks[s]->views_size();
+    for (int k = 0; k < r.renders_size() && k < 2 * nv; ++k) {
+      bool ok = false;
+      Image im = fromWire(r.renders(k), &ok);
+      if (!ok) continue;
+      std::string stem = (k < nv ? "final_view" : "target_view") + std::to_string(tasks[s]->views(k % nv));
+      for (const char* ext : {".png", ".exr"}) {
+        writeImage(dir / (stem + ext), im);
+        files.push_back(stem + ext);
+      }
+    }
+    // Variance-aware jobs: the per-pixel variance of one sample, as the job now samples.
+    for (int k = 0; k < r.variances_size() && k < nv; ++k) {
+      bool ok = false;
+      Image im = fromWire(r.variances(k), &ok);
+      if (!ok) continue;
+      std::string name = "variance_view" + std::to_string(tasks[s]->views(k)) + ".exr";
+      writeImage(dir / name, im);
+      files.push_back(name);
+    }
+  }
+  for (auto& f : writeSelectionResults(dir, p.params, *p.scene, c.theta)) files.push_back(f);
+  copyLog(id, files);
+  book_.end(id, v1::SUCCEEDED, "", &files);
+}
+
+}  // namespace invr::server
