@@ -91,6 +91,7 @@ struct JobArgs {
   int steps = 0;
   std::string method;
   int targetSpp = 0;
+  int priority = 0, maxWorkers = -1;
   SceneArgs sceneArgs;
 };
 
@@ -99,6 +100,11 @@ void addJobArgs(CLI::App* cmd, JobArgs& a) {
   cmd->add_option("--steps", a.steps, "override the number of steps")->check(CLI::PositiveNumber);
   cmd->add_option("--method", a.method, "override the gradient method")->check(CLI::IsMember({"pt", "ris", "restir"}));
   cmd->add_option("--target-spp", a.targetSpp, "override the samples per pixel of rendered targets")->check(CLI::PositiveNumber);
+  cmd->add_option("--priority", a.priority,
+                  "scheduling.priority: the job's weight in the share of worker time among jobs running at once (1..100; default 1)")
+      ->check(CLI::Range(1, 100));
+  cmd->add_option("--max-workers", a.maxWorkers, "scheduling.max_workers: at most this many workers hold the job's shards (0: no cap)")
+      ->check(CLI::Range(0, 4096));
   addSceneArgs(cmd, a.sceneArgs, true);
 }
 
@@ -109,6 +115,8 @@ v1::JobSpec loadJob(const JobArgs& a, std::filesystem::path& baseDir) {
   baseDir = assets.baseDir;
   if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
   if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
+  if (a.priority > 0) job.mutable_scheduling()->set_priority(uint32_t(a.priority));
+  if (a.maxWorkers >= 0) job.mutable_scheduling()->set_max_workers(uint32_t(a.maxWorkers));
   if (a.method == "pt") job.mutable_optimization()->set_method(v1::METHOD_PT);
   if (a.method == "ris") job.mutable_optimization()->set_method(v1::METHOD_RIS);
   if (a.method == "restir") job.mutable_optimization()->set_method(v1::METHOD_RESTIR);
@@ -355,6 +363,8 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
       std::cout << s.job_id() << "  " << v1::JobState_Name(s.state()) << "  step " << s.step() << "/" << s.steps() << "  loss " << s.loss();
       if (s.param_error() >= 0) std::cout << "  param_error " << s.param_error();
       std::cout << "  " << s.seconds() << " s";
+      std::cout << "  priority " << s.priority() << "  worker time " << s.worker_seconds() << " s";
+      if (s.state() == v1::RUNNING) std::cout << " on " << s.workers() << " worker(s)";
       if (!s.reason().empty()) std::cout << "\n  reason: " << s.reason();
       std::cout << "\n";
     }
@@ -368,7 +378,8 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     ServiceClient c(ls->server);
     const v1::ListJobsResponse all = c.list();
     for (const auto& j : all.jobs())
-      std::cout << j.job_id() << "  " << v1::JobState_Name(j.state()) << "  " << j.name() << "  step " << j.step() << "/" << j.steps() << "\n";
+      std::cout << j.job_id() << "  " << v1::JobState_Name(j.state()) << "  " << j.name() << "  step " << j.step() << "/" << j.steps()
+                << "  priority " << j.priority() << "\n";
     exitCode = exit_code::kOk;
   });
 
@@ -402,7 +413,8 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     ServiceClient c(wk->server);
     const v1::ListWorkersResponse all = c.workers();
     for (const auto& w : all.workers())
-      std::cout << w.name() << "  " << w.capacity() << " thread(s)  " << w.shards() << " shard(s)" << (w.leaving() ? "  leaving" : "") << "\n";
+      std::cout << w.name() << "  " << w.capacity() << " thread(s)  " << w.shards() << " shard(s) of " << w.jobs() << " job(s)"
+                << (w.busy() ? "  busy" : "  idle") << (w.leaving() ? "  leaving" : "") << "\n";
     exitCode = exit_code::kOk;
   });
 

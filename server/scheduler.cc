@@ -106,6 +106,8 @@ void Scheduler::onMessage(WorkerLink* link, const v1::WorkerMessage& m) {
       l.result.set_error("malformed result (" + bad + ")");
     }
     l.done = true;
+      // Its evaluation complete, the job is about to have work again (see pumpLocked).
+    if (job != jobs_.end() && !outstandingLocked(job->second)) job->second.idleSince = Clock::now();
   }
   pumpLocked();
   cv_.notify_all();
@@ -310,22 +312,46 @@ void Scheduler::sendLocked(Job& job, size_t s, Worker& w) {
   w.link->send(std::move(m));
 }
 
-// Gives each free worker the ready task of the job that is furthest behind in its fair share.
+// Whether the job has a task waiting to be sent or one out on a worker.
+bool Scheduler::outstandingLocked(const Job& job) const {
+  for (size_t s = 0; s < job.ready.size(); ++s) {
+    if (job.ready[s]) return true;
+    if (job.leaseOf[s]) {
+      auto it = leases_.find(job.leaseOf[s]);
+      if (it != leases_.end() && !it->second.done) return true;
+    }
+  }
+  return false;
+}
+
+// Gives each free worker the ready task of the job furthest behind in its fair share. A job that
+// is further behind still but between evaluations keeps the worker waiting (briefly) for it.
 void Scheduler::pumpLocked() {
   if (stopping_) return;
+  const auto now = Clock::now();
+  const auto anticipation = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(kAnticipationSeconds));
+  auto before = [](const Job& a, const Job& b) { return std::make_pair(a.virtualTime, a.order) < std::make_pair(b.virtualTime, b.order); };
   for (auto& [wid, w] : workers_) {
     if (!w.free()) continue;
     Job* best = nullptr;
     size_t bestShard = 0;
     for (auto& [jid, j] : jobs_) {
-      if (best && std::make_pair(j.virtualTime, j.order) >= std::make_pair(best->virtualTime, best->order)) continue;
+      if (best && !before(j, *best)) continue;
       for (size_t s = 0; s < j.ready.size(); ++s)
         if (j.ready[s] && j.assignment[s] == wid) {
           best = &j, bestShard = s;
           break;
         }
     }
-    if (best) sendLocked(*best, bestShard, w);
+    if (!best) continue;
+    bool wait = false;
+    for (auto& [jid, j] : jobs_) {
+      if (&j == best || !before(j, *best) || j.idleSince + anticipation <= now || outstandingLocked(j)) continue;
+      if (std::find(j.assignment.begin(), j.assignment.end(), wid) == j.assignment.end()) continue;
+      wait = true;
+          holdUntil_ = std::max(holdUntil_, j.idleSince + anticipation);
+    }
+    if (!wait) sendLocked(*best, bestShard, w);
   }
 }
 
@@ -338,13 +364,12 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
   std::fill(job.attempts.begin(), job.attempts.end(), 0);
   std::fill(job.leaseOf.begin(), job.leaseOf.end(), 0);
   for (size_t s = 0; s < n; ++s) job.ready[s] = tasks[s] ? &*tasks[s] : nullptr;
-  // Back in the competition after a pause (its optimiser step): no credit for the time it had
-  // nothing to run.
+  // Back in the competition after a pause: credit for at most kRejoinSlackSeconds of it.
   {
     std::optional<double> least;
     for (const auto& [jid, o] : jobs_)
       if (jid != id && o.running) least = least ? std::min(*least, o.virtualTime) : o.virtualTime;
-    if (least) job.virtualTime = std::max(job.virtualTime, *least);
+    if (least) job.virtualTime = std::max(job.virtualTime, *least - kRejoinSlackSeconds);
   }
   job.running = true;
   auto dropLease = [&](size_t s) {
@@ -385,10 +410,18 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
       bool all = true;
       for (size_t s = 0; s < n; ++s) {
         if (!tasks[s] || results[s]) continue;
-        all = false;
-        if (!job.leaseOf[s]) continue;  // not sent yet
+        if (!job.leaseOf[s]) {  // not sent yet
+          all = false;
+          continue;
+        }
         Lease& l = leases_.at(job.leaseOf[s]);
         Worker& w = workers_.at(l.worker);
+        if (l.done && l.result.error().empty() && !l.result.spec_unknown()) {
+          results[s] = std::move(l.result);
+          dropLease(s);
+          continue;
+        }
+        all = false;
         if (l.done && l.result.spec_unknown() && !l.sentSpec) {
           // The worker lost the spec (it reconnected or dropped it): send it again, no attempt lost.
           w.specsSent.erase(id);
@@ -397,11 +430,6 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
           continue;
         }
         if (l.done) {
-          if (l.result.error().empty() && !l.result.spec_unknown()) {
-            results[s] = std::move(l.result);
-            dropLease(s);
-            continue;
-          }
           if (l.result.input_error()) throw JobFailed{l.result.error()};
           retry(s, "worker " + w.name + " failed: " +
                        (l.result.spec_unknown() ? std::string("it did not take the job's spec") : l.result.error()));
@@ -415,7 +443,9 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
         }
       }
       if (all) break;
-      cv_.wait_for(lk, std::chrono::milliseconds(settle ? 20 : 100));
+      auto wakeAt = Clock::now() + std::chrono::milliseconds(settle ? 20 : 100);
+      if (holdUntil_ > Clock::now()) wakeAt = std::min(wakeAt, holdUntil_ + std::chrono::milliseconds(1));
+      cv_.wait_until(lk, wakeAt);
     }
   } catch (...) {
     for (size_t s = 0; s < n; ++s) {
@@ -423,9 +453,11 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
       job.ready[s] = nullptr;
     }
     job.running = false;
+    job.idleSince = Clock::now();
     throw;
   }
   job.running = false;
+  job.idleSince = Clock::now();
   return results;
 }
 

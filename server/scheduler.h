@@ -7,7 +7,9 @@
 //   targets and ReSTIR reservoirs), unless that worker is lost, stalls or fails it.
 // - Weighted fair share: a free worker takes the ready task of the job with the least worker time
 //   per unit of priority (virtual time), so jobs that share workers get time in proportion to
-//   their priorities while all have work.
+//   their priorities while all have work. A job between two evaluations (its optimiser step) is
+//   about to have work again: a free worker waits briefly (kAnticipation) for it rather than go to
+//   a job that is ahead of it.
 // - Leases: a task unanswered after the lease is reassigned and its worker is suspect (no new
 //   lease) until it shows it is alive; a silent worker's stream is closed.
 //
@@ -46,6 +48,12 @@ struct JobCancelled {};
 struct JobFailed {
   std::string reason;
 };
+
+// How long a free worker is held for a job that is behind in its share and between evaluations.
+inline constexpr double kAnticipationSeconds = 0.05;
+// A job that had no work for a while is not owed that time: it rejoins at most this many seconds
+// (of worker time per unit of priority) behind the others.
+inline constexpr double kRejoinSlackSeconds = 0.5;
 
 struct SchedulerOptions {
   double leaseSeconds = 600;            // a task unanswered this long is reassigned
@@ -134,6 +142,7 @@ class Scheduler {
     double virtualTime = 0;            // worker seconds / priority
     double workerSeconds = 0;
     bool running = false;              // inside run()
+    Clock::time_point idleSince;       // when its last evaluation completed
     bool announcedWaiting = false;
     Clock::time_point started = Clock::now();
   };
@@ -144,6 +153,7 @@ class Scheduler {
   void checkWorkersLocked();
   void freeWorkerLocked(Worker& w, uint64_t task);
   size_t loadLocked(uint64_t worker) const;
+  bool outstandingLocked(const Job& job) const;
   Worker* byLinkLocked(WorkerLink* link);
 
   SchedulerOptions opt_;
@@ -153,6 +163,7 @@ class Scheduler {
   std::map<std::string, Job> jobs_;
   std::map<uint64_t, Lease> leases_;
   uint64_t nextWorker_ = 1, nextTask_ = 1, nextOrder_ = 1;
+  Clock::time_point holdUntil_;  // a free worker is held for a job about to be ready until then
   bool stopping_ = false;
 };
 

@@ -93,6 +93,62 @@ TEST(Service, TwoWorkersGiveTheSameParametersAsOne) {
   EXPECT_EQ(theta[0], inProcess(job));
 }
 
+TEST(Service, TwoJobsAtOnceShareTheWorkersAndGiveTheirAloneNumbers) {
+  // Two jobs of two shards each, submitted together to two workers: both run at once (each
+  // worker holds sessions of both), and each job's parameters are those of it alone in process.
+  v1::JobSpec a = smallJob("backlit", 3);
+  a.mutable_optimization()->set_shards(2);
+  a.mutable_optimization()->set_target_spp(2);
+  v1::JobSpec b = a;  // another job: other random streams
+  b.mutable_optimization()->set_seed(a.optimization().seed() + 1);
+  b.mutable_scheduling()->set_priority(3);
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(1);
+  c.startWorker(1);
+  std::string ida, idb;
+  ASSERT_TRUE(c.submit(a, &ida).ok());
+  grpc::Status sb0 = c.submit(b, &idb);
+  ASSERT_TRUE(sb0.ok()) << sb0.error_message();
+  auto ea = c.watch(ida);
+  auto eb = c.watch(idb);
+  ASSERT_FALSE(ea.empty());
+  ASSERT_FALSE(eb.empty());
+  ASSERT_EQ(ea.back().final().state(), v1::SUCCEEDED) << ea.back().final().reason();
+  ASSERT_EQ(eb.back().final().state(), v1::SUCCEEDED) << eb.back().final().reason();
+  // They overlapped: b started before a ended.
+  auto firstStep = [](const std::vector<v1::ProgressEvent>& evs) {
+    for (const auto& e : evs)
+      if (e.has_step()) return e.unix_ms();
+    return int64_t(0);
+  };
+  EXPECT_LT(firstStep(eb), ea.back().unix_ms());
+  EXPECT_EQ(c.checkpointTheta(ida), inProcess(a));
+  EXPECT_EQ(c.checkpointTheta(idb), inProcess(b));
+  v1::JobStatus sa = c.get(ida), sb = c.get(idb);
+  EXPECT_EQ(sa.priority(), 1u);
+  EXPECT_EQ(sb.priority(), 3u);
+  EXPECT_GT(sa.worker_seconds(), 0.0);
+  EXPECT_GT(sb.worker_seconds(), 0.0);
+}
+
+TEST(Service, SchedulingFieldsOutOfRangeAreRejectedNamingTheField) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  v1::JobSpec job = smallJob("cornell", 1);
+  job.mutable_scheduling()->set_priority(101);
+  std::string id;
+  grpc::Status st = c.submit(job, &id);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("scheduling.priority"), std::string::npos) << st.error_message();
+  job.mutable_scheduling()->set_priority(1);
+  job.mutable_scheduling()->set_max_workers(5000);
+  st = c.submit(job, &id);
+  EXPECT_NE(st.error_message().find("scheduling.max_workers"), std::string::npos) << st.error_message();
+}
+
 TEST(Service, VarianceJobsMatchInProcessWithAnyWorkerCount) {
   // A variance-aware job (Yan et al. 2024) over two shards: the variance pass, its loss terms
   // and the render cost travel through the service and sum as in process.
