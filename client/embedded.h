@@ -69,7 +69,8 @@ class EmbeddedService {
   EmbeddedService(const std::filesystem::path& store, int workers, int threads) : server_(options(store)) {
     int port = server_.start();
     local_.start(workers, threads, port, store);
-    client_ = std::make_unique<ServiceClient>("127.0.0.1:" + std::to_string(port));
+    // Its own loopback server: plaintext, no token, whatever the command line says about others.
+    client_ = std::make_unique<ServiceClient>("127.0.0.1:" + std::to_string(port), wire::ClientSecurity{});
     if (!client_->waitForWorkers(workers, 30))
       throw ExitError(exit_code::kInternal, "local workers did not connect (logs in " + store.string() + ")");
   }

@@ -11,6 +11,7 @@ inline constexpr int kInternal = 3;           // a bug: please report
 inline constexpr int kJobFailed = 4;          // the job ran and failed (diverged, workers kept failing, ...)
 inline constexpr int kServerUnavailable = 5;  // no server at the address (or it went away)
 inline constexpr int kCancelled = 6;          // the job was cancelled
+inline constexpr int kRefused = 7;            // the server refused the credentials (token or TLS certificate)
 inline constexpr int kInterrupted = 130;      // Ctrl-C while watching: the job itself goes on
 }  // namespace invr::exit_code
 

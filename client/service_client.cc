@@ -27,6 +27,10 @@ void throwIfFailed(const grpc::Status& st, const std::string& what) {
     case grpc::StatusCode::FAILED_PRECONDITION:
     case grpc::StatusCode::ALREADY_EXISTS:
       throw ExitError(exit_code::kInputError, what + ": " + st.error_message());
+    case grpc::StatusCode::UNAUTHENTICATED:
+    case grpc::StatusCode::PERMISSION_DENIED:
+      throw ExitError(exit_code::kRefused, what + ": refused by the server: " + st.error_message() +
+                                               " (the client token: --token-file or $INVR_TOKEN)");
     default:
       throw ExitError(exit_code::kInternal, what + ": " + st.error_message() + " (gRPC code " + std::to_string(int(st.error_code())) + ")");
   }
@@ -40,8 +44,8 @@ int exitCodeFor(v1::JobState s) {
   }
 }
 
-ServiceClient::ServiceClient(const std::string& address)
-    : address_(address), channel_(wire::channel(address)) {
+ServiceClient::ServiceClient(const std::string& address, wire::ClientSecurity security)
+    : address_(address), security_(std::move(security)), channel_(wire::channel(address, security_)) {
   stub_ = v1::InvrService::NewStub(channel_);
 }
 
@@ -49,6 +53,7 @@ std::string ServiceClient::upload(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError("'" + file.string() + "': cannot read");
   grpc::ClientContext ctx;
+  wire::addToken(ctx, security_);
   v1::AssetInfo info;
   auto w = stub_->UploadAsset(&ctx, &info);
   std::string buf(wire::kChunkBytes, '\0');
@@ -77,8 +82,9 @@ namespace {
 
 // One unary call: the response, or an ExitError naming what failed.
 template <class Resp, class Req, class Method>
-Resp unary(v1::InvrService::Stub& stub, Method method, const Req& req, const std::string& what) {
+Resp unary(v1::InvrService::Stub& stub, const wire::ClientSecurity& security, Method method, const Req& req, const std::string& what) {
   grpc::ClientContext ctx;
+  wire::addToken(ctx, security);
   Resp resp;
   throwIfFailed((stub.*method)(&ctx, req, &resp), what);
   return resp;
@@ -96,31 +102,31 @@ v1::SubmitJobResponse ServiceClient::submit(const v1::JobSpec& job, const std::s
   v1::SubmitJobRequest req;
   req.set_request_id(requestId);
   *req.mutable_spec() = job;
-  return unary<v1::SubmitJobResponse>(*stub_, &v1::InvrService::Stub::SubmitJob, req, "submit");
+  return unary<v1::SubmitJobResponse>(*stub_, security_, &v1::InvrService::Stub::SubmitJob, req, "submit");
 }
 
 v1::JobPlan ServiceClient::plan(const v1::JobSpec& job) {
   v1::PlanJobRequest req;
   *req.mutable_spec() = job;
-  return unary<v1::JobPlan>(*stub_, &v1::InvrService::Stub::PlanJob, req, "plan");
+  return unary<v1::JobPlan>(*stub_, security_, &v1::InvrService::Stub::PlanJob, req, "plan");
 }
 
 v1::JobStatus ServiceClient::get(const std::string& job) {
-  return unary<v1::JobStatus>(*stub_, &v1::InvrService::Stub::GetJob, jobRequest(job), "status");
+  return unary<v1::JobStatus>(*stub_, security_, &v1::InvrService::Stub::GetJob, jobRequest(job), "status");
 }
 
 v1::ListJobsResponse ServiceClient::list() {
-  return unary<v1::ListJobsResponse>(*stub_, &v1::InvrService::Stub::ListJobs, v1::ListJobsRequest(), "list");
+  return unary<v1::ListJobsResponse>(*stub_, security_, &v1::InvrService::Stub::ListJobs, v1::ListJobsRequest(), "list");
 }
 
 v1::JobStatus ServiceClient::cancel(const std::string& job) {
   v1::CancelJobRequest req;
   req.set_job_id(job);
-  return unary<v1::JobStatus>(*stub_, &v1::InvrService::Stub::CancelJob, req, "cancel");
+  return unary<v1::JobStatus>(*stub_, security_, &v1::InvrService::Stub::CancelJob, req, "cancel");
 }
 
 v1::ListWorkersResponse ServiceClient::workers() {
-  return unary<v1::ListWorkersResponse>(*stub_, &v1::InvrService::Stub::ListWorkers, v1::ListWorkersRequest(), "workers");
+  return unary<v1::ListWorkersResponse>(*stub_, security_, &v1::InvrService::Stub::ListWorkers, v1::ListWorkersRequest(), "workers");
 }
 
 bool ServiceClient::waitForWorkers(int n, double timeoutSeconds) {
@@ -138,6 +144,7 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
   uint64_t next = from;
   for (;;) {
     grpc::ClientContext ctx;
+    wire::addToken(ctx, security_);
     v1::WatchJobRequest req;
     req.set_job_id(job);
     req.set_from_sequence(next);
@@ -189,6 +196,7 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
 void ServiceClient::fetchOne(const std::string& job, const std::string& name, const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
   grpc::ClientContext ctx;
+  wire::addToken(ctx, security_);
   v1::FetchResultRequest req;
   req.set_job_id(job);
   req.set_name(name);

@@ -10,12 +10,14 @@
 #include <string>
 
 #include "invr/v1/service.grpc.pb.h"
+#include "proto/wire/security.h"
 
 namespace invr::cli {
 
 class ServiceClient {
  public:
-  explicit ServiceClient(const std::string& address);
+  // Plaintext without `security`'s CA; its token (if any) goes with every call.
+  explicit ServiceClient(const std::string& address, invr::wire::ClientSecurity security = {});
 
   // Uploads every asset the job names by path (relative to baseDir) and rewrites the reference
   // to its sha256, so the job means the same thing on the server.
@@ -51,6 +53,7 @@ class ServiceClient {
 
  private:
   std::string address_;
+  invr::wire::ClientSecurity security_;
   std::shared_ptr<grpc::Channel> channel_;
   double reconnectSeconds_ = 60;
   std::unique_ptr<invr::v1::InvrService::Stub> stub_;

@@ -86,6 +86,36 @@ std::atomic<bool>& interruptFlag() {
   return flag;
 }
 
+// How the CLI reaches a server: TLS and token options, shared by every command with --server
+// (one command runs per process).
+struct ConnectionArgs {
+  std::string ca, cert, key, serverName, tokenFile;
+};
+ConnectionArgs& connectionArgs() {
+  static ConnectionArgs a;
+  return a;
+}
+
+void addConnectionArgs(CLI::App* cmd) {
+  ConnectionArgs& a = connectionArgs();
+  cmd->add_option("--tls-ca", a.ca, "CA certificate (PEM) that signed the server's: connect over TLS");
+  cmd->add_option("--tls-cert", a.cert, "client certificate (PEM) for a server that requires one (mutual TLS)");
+  cmd->add_option("--tls-key", a.key, "the client certificate's private key (PEM)");
+  cmd->add_option("--tls-server-name", a.serverName, "name expected in the server's certificate (default: the host of --server)");
+  cmd->add_option("--token-file", a.tokenFile, "file holding the server's client token (default: $INVR_TOKEN)");
+}
+
+ServiceClient connect(const std::string& server) {
+  const ConnectionArgs& a = connectionArgs();
+  wire::ClientSecurity sec;
+  try {
+    sec = wire::loadClientSecurity(a.ca, a.cert, a.key, a.serverName, a.tokenFile, "INVR_TOKEN");
+  } catch (const std::runtime_error& e) {
+    throw InputError(e.what());
+  }
+  return ServiceClient(server, std::move(sec));
+}
+
 struct JobArgs {
   std::string job;
   int steps = 0;
@@ -192,7 +222,7 @@ unsigned embeddedWorkerThreads(size_t shards, int workersAsked) {
 // server's answer (the same validation as a submission, memory for its workers' threads).
 void printPlan(v1::JobSpec job, const std::filesystem::path& baseDir, const std::string& server) {
   if (!server.empty()) {
-    ServiceClient c(server);
+    ServiceClient c = connect(server);
     c.uploadAssets(job, baseDir);
     std::cout << c.plan(job).text();
     return;
@@ -220,7 +250,7 @@ int runJob(const RunArgs& a) {
   v1::JobSpec job = loadJob(a, baseDir);
   std::filesystem::path out(a.out);
   if (!a.server.empty()) {  // against a running server: submit, watch, fetch
-    ServiceClient c(a.server);
+    ServiceClient c = connect(a.server);
     c.uploadAssets(job, baseDir);
     auto r = c.submit(job, randomRequestId());
     std::cout << "submitted " << r.job_id() << " to " << a.server << "\n";
@@ -297,6 +327,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   addJobArgs(r, *run);
   r->add_option("-o,--out", run->out, "folder for the results")->capture_default_str();
   r->add_option("--server", run->server, "host:port of a running invr-server (default: embedded)");
+  addConnectionArgs(r);
   r->add_option("--workers", run->workers, "local worker processes (embedded; default one per core, at least 2)")->check(CLI::PositiveNumber);
   r->add_option("--store", run->store, "keep the embedded server's job store here (an interrupted run resumes)");
   r->add_flag("--json", run->json, "one JSON object per progress event on stdout");
@@ -305,6 +336,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
 
   auto serverOpt = [](CLI::App* cmd, std::string& s) {
     cmd->add_option("--server", s, "host:port of the invr-server")->default_val("127.0.0.1:50051")->capture_default_str();
+    addConnectionArgs(cmd);
   };
 
   auto sub = std::make_shared<RunArgs>();
@@ -316,7 +348,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   s->callback([sub, requestId, &exitCode] {
     std::filesystem::path baseDir;
     v1::JobSpec job = loadJob(*sub, baseDir);
-    ServiceClient c(sub->server);
+    ServiceClient c = connect(sub->server);
     c.uploadAssets(job, baseDir);
     auto resp = c.submit(job, requestId->empty() ? randomRequestId() : *requestId);
     std::cout << resp.job_id() << "\n";
@@ -340,7 +372,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
       ->check(CLI::NonNegativeNumber);
   wc->callback([w, &exitCode] {
     interruptFlag();
-    ServiceClient c(w->server);
+    ServiceClient c = connect(w->server);
     c.setReconnectSeconds(w->reconnect);
     exitCode = watchToEnd(c, w->id, w->from, w->json, "the job goes on: invr watch " + w->id + " --server " + w->server);
   });
@@ -351,7 +383,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   serverOpt(sc, st->server);
   sc->add_flag("--json", st->json, "as JSON");
   sc->callback([st, &exitCode] {
-    ServiceClient c(st->server);
+    ServiceClient c = connect(st->server);
     v1::JobStatus s = c.get(st->id);
     if (st->json) {
       std::string js;
@@ -375,7 +407,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   auto* lc = app.add_subcommand("list", "List the server's jobs");
   serverOpt(lc, ls->server);
   lc->callback([ls, &exitCode] {
-    ServiceClient c(ls->server);
+    ServiceClient c = connect(ls->server);
     const v1::ListJobsResponse all = c.list();
     for (const auto& j : all.jobs())
       std::cout << j.job_id() << "  " << v1::JobState_Name(j.state()) << "  " << j.name() << "  step " << j.step() << "/" << j.steps()
@@ -388,7 +420,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   cc->add_option("job_id", cn->id)->required();
   serverOpt(cc, cn->server);
   cc->callback([cn, &exitCode] {
-    ServiceClient c(cn->server);
+    ServiceClient c = connect(cn->server);
     v1::JobStatus s = c.cancel(cn->id);
     std::cout << s.job_id() << "  " << v1::JobState_Name(s.state()) << (s.state() == v1::RUNNING ? " (stopping)" : "") << "\n";
     exitCode = exit_code::kOk;
@@ -400,7 +432,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   serverOpt(fc, fe->server);
   fc->add_option("-o,--out", fe->out, "folder")->capture_default_str();
   fc->callback([fe, &exitCode] {
-    ServiceClient c(fe->server);
+    ServiceClient c = connect(fe->server);
     int n = fetchResults(c, fe->id, fe->out);
     std::cout << "wrote " << n << " file(s) to " << where(fe->out) << "\n";
     exitCode = exit_code::kOk;
@@ -410,7 +442,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   auto* wkc = app.add_subcommand("workers", "List the workers connected to a server");
   serverOpt(wkc, wk->server);
   wkc->callback([wk, &exitCode] {
-    ServiceClient c(wk->server);
+    ServiceClient c = connect(wk->server);
     const v1::ListWorkersResponse all = c.workers();
     for (const auto& w : all.workers())
       std::cout << w.name() << "  " << w.capacity() << " thread(s)  " << w.shards() << " shard(s) of " << w.jobs() << " job(s)"
@@ -440,7 +472,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
       std::filesystem::path p(in);
       if (!std::filesystem::exists(p) && in.rfind("job-", 0) == 0 && in.find('/') == std::string::npos) {
         if (fetched.empty()) fetched = std::filesystem::temp_directory_path() / ("invr-chart-" + std::to_string(getpid()));
-        ServiceClient(ch->server).fetchOne(in, "convergence.csv", fetched / in);
+        connect(ch->server).fetchOne(in, "convergence.csv", fetched / in);
         csvs.push_back(fetched / in / "convergence.csv");
         continue;
       }
@@ -469,6 +501,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   pc->add_option("--server", pl->server,
                  "ask this server (validated as a submission would be; memory for its workers' threads); without it, the plan for "
                  "`invr run`'s local workers on this machine");
+  addConnectionArgs(pc);
   pc->callback([pl, &exitCode] {
     std::filesystem::path baseDir;
     v1::JobSpec job = loadJob(*pl, baseDir);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package that invr's build, tests, demo and charts need (clang and its
 # runtime libraries for the fuzz targets of deploy/fuzz.sh: libFuzzer is in libclang-rt-14-dev;
-# Slurm and munge for the real-Slurm test of deploy/slurm/invr.sbatch).
+# Slurm and munge for the real-Slurm test of deploy/slurm/invr.sbatch; openssl makes the TLS
+# test's certificates; iproute2 gives `ip netns` for the multi-host test).
 # Idempotent and non-interactive; run as root (or through sudo).
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
@@ -21,6 +22,7 @@ PACKAGES=(
   python3 python3-grpcio python3-matplotlib
   clang libclang-rt-14-dev
   slurm-wlm munge
+  openssl iproute2
 )
 
 missing=()

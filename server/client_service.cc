@@ -65,24 +65,34 @@ grpc::ServerUnaryReactor* finish(grpc::CallbackServerContext* ctx, grpc::Status 
   return reactor;
 }
 
+// An upload refused before its first chunk (authentication).
+class RefusedUpload final : public grpc::ServerReadReactor<v1::AssetChunk> {
+ public:
+  explicit RefusedUpload(grpc::Status st) { Finish(std::move(st)); }
+  void OnDone() override { delete this; }
+};
+
 }  // namespace
 
 ClientService::ClientService(JobBook& book, const Admission& admission, PreparedProblem& prepared, Scheduler& scheduler,
-                             AssetStore& assets, uint64_t maxAssetBytes, ControlQueue& control)
+                             AssetStore& assets, uint64_t maxAssetBytes, ControlQueue& control, const Authenticator& auth)
     : book_(book),
       admission_(admission),
       prepared_(prepared),
       scheduler_(scheduler),
       assets_(assets),
       maxAssetBytes_(maxAssetBytes),
-      control_(control) {}
+      control_(control),
+      auth_(auth) {}
 
-grpc::ServerReadReactor<v1::AssetChunk>* ClientService::UploadAsset(grpc::CallbackServerContext*, v1::AssetInfo* info) {
+grpc::ServerReadReactor<v1::AssetChunk>* ClientService::UploadAsset(grpc::CallbackServerContext* ctx, v1::AssetInfo* info) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "UploadAsset"); !st.ok()) return new RefusedUpload(st);
   return new Uploader(assets_, maxAssetBytes_, info);
 }
 
 grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
                                                    v1::SubmitJobResponse* resp) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "SubmitJob"); !st.ok()) return finish(ctx, st);
   if (req->request_id().size() > 256)  // it is stored with the job and kept in memory
     return finish(ctx, grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                                     "request_id: " + std::to_string(req->request_id().size()) + " bytes long (limit 256)"));
@@ -120,6 +130,7 @@ grpc::Status ClientService::submit(const v1::SubmitJobRequest& req, v1::SubmitJo
 }
 
 grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ctx, const v1::PlanJobRequest* req, v1::JobPlan* resp) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "PlanJob"); !st.ok()) return finish(ctx, st);
   auto* reactor = ctx->DefaultReactor();
   // Building the problem loads meshes and textures: not on a gRPC thread.
   control_.post([this, reactor, req, resp] {
@@ -136,15 +147,18 @@ grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ct
 }
 
 grpc::ServerUnaryReactor* ClientService::GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req, v1::JobStatus* resp) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "GetJob"); !st.ok()) return finish(ctx, st);
   return finish(ctx, book_.status(req->job_id(), resp));
 }
 
 grpc::ServerUnaryReactor* ClientService::ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*, v1::ListJobsResponse* resp) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "ListJobs"); !st.ok()) return finish(ctx, st);
   for (auto& s : book_.list()) *resp->add_jobs() = std::move(s);
   return finish(ctx, grpc::Status::OK);
 }
 
 grpc::ServerUnaryReactor* ClientService::CancelJob(grpc::CallbackServerContext* ctx, const v1::CancelJobRequest* req, v1::JobStatus* resp) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "CancelJob"); !st.ok()) return finish(ctx, st);
   bool wasQueued = false;
   grpc::Status st = book_.cancel(req->job_id(), resp, &wasQueued);
   if (wasQueued) prepared_.drop(req->job_id());
@@ -152,13 +166,18 @@ grpc::ServerUnaryReactor* ClientService::CancelJob(grpc::CallbackServerContext* 
   return finish(ctx, st);
 }
 
-grpc::ServerWriteReactor<v1::ProgressEvent>* ClientService::WatchJob(grpc::CallbackServerContext*, const v1::WatchJobRequest* req) {
+grpc::ServerWriteReactor<v1::ProgressEvent>* ClientService::WatchJob(grpc::CallbackServerContext* ctx, const v1::WatchJobRequest* req) {
   auto* w = new Watcher(book_, req->job_id());
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "WatchJob"); !st.ok()) {
+    w->close(st);
+    return w;
+  }
   if (grpc::Status st = book_.watch(req->job_id(), req->from_sequence(), w); !st.ok()) w->close(st);
   return w;
 }
 
-grpc::ServerWriteReactor<v1::AssetChunk>* ClientService::FetchResult(grpc::CallbackServerContext*, const v1::FetchResultRequest* req) {
+grpc::ServerWriteReactor<v1::AssetChunk>* ClientService::FetchResult(grpc::CallbackServerContext* ctx, const v1::FetchResultRequest* req) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "FetchResult"); !st.ok()) return new FailedFileSender(st);
   std::filesystem::path path;
   if (grpc::Status st = book_.resultPath(req->job_id(), req->name(), &path); !st.ok()) return new FailedFileSender(st);
   return new FileSender(path);
@@ -166,6 +185,7 @@ grpc::ServerWriteReactor<v1::AssetChunk>* ClientService::FetchResult(grpc::Callb
 
 grpc::ServerUnaryReactor* ClientService::ListWorkers(grpc::CallbackServerContext* ctx, const v1::ListWorkersRequest*,
                                                      v1::ListWorkersResponse* resp) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "ListWorkers"); !st.ok()) return finish(ctx, st);
   for (auto& w : scheduler_.workers()) *resp->add_workers() = std::move(w);
   return finish(ctx, grpc::Status::OK);
 }

@@ -5,6 +5,7 @@
 #include "invr/v1/service.grpc.pb.h"
 #include "server/admission.h"
 #include "server/asset_store.h"
+#include "server/auth.h"
 #include "server/control_queue.h"
 #include "server/job_book.h"
 #include "server/scheduler.h"
@@ -14,7 +15,7 @@ namespace invr::server {
 class ClientService final : public invr::v1::InvrService::CallbackService {
  public:
   ClientService(JobBook& book, const Admission& admission, PreparedProblem& prepared, Scheduler& scheduler, AssetStore& assets,
-                uint64_t maxAssetBytes, ControlQueue& control);
+                uint64_t maxAssetBytes, ControlQueue& control, const Authenticator& auth);
 
   grpc::ServerReadReactor<invr::v1::AssetChunk>* UploadAsset(grpc::CallbackServerContext*, invr::v1::AssetInfo* info) override;
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const invr::v1::SubmitJobRequest* req,
@@ -38,6 +39,7 @@ class ClientService final : public invr::v1::InvrService::CallbackService {
   AssetStore& assets_;
   uint64_t maxAssetBytes_;
   ControlQueue& control_;
+  const Authenticator& auth_;
 };
 
 }  // namespace invr::server

@@ -4,9 +4,11 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 
+#include "proto/wire/security.h"
 #include "server/server.h"
 
 int main(int argc, char** argv) {
@@ -31,11 +33,33 @@ int main(int argc, char** argv) {
                  "memory one job may take (textures, meshes, targets and per-worker state); larger jobs are refused (RESOURCE_EXHAUSTED)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  std::string tlsCert, tlsKey, tlsClientCa, clientTokenFile, workerTokenFile;
+  app.add_option("--tls-cert", tlsCert, "server certificate chain (PEM): serve TLS; needed to listen beyond loopback (or --insecure)");
+  app.add_option("--tls-key", tlsKey, "the certificate's private key (PEM)");
+  app.add_option("--tls-client-ca", tlsClientCa, "CA (PEM) whose certificates clients and workers must present (mutual TLS)");
+  app.add_flag("--insecure", o.insecure, "allow plaintext on a non-loopback address (logs a warning)");
+  app.add_option("--client-token-file", clientTokenFile,
+                 "bearer token clients must send (file with one line; default: $INVR_CLIENT_TOKEN; none: client API unchecked)");
+  app.add_option("--worker-token-file", workerTokenFile,
+                 "bearer token workers must send, different from the client token (default: $INVR_WORKER_TOKEN; none: worker API unchecked)");
   CLI11_PARSE(app, argc, argv);
+  auto tokenFrom = [](const std::string& file, const char* env, const char* what) -> std::string {
+    if (!file.empty()) return invr::wire::readTokenFile(file, what);
+    const char* v = std::getenv(env);
+    return v ? std::string(v) : std::string();
+  };
+  try {
+    if (!tlsCert.empty()) o.tlsCertPem = invr::wire::readPemFile(tlsCert, "--tls-cert");
+    if (!tlsKey.empty()) o.tlsKeyPem = invr::wire::readPemFile(tlsKey, "--tls-key");
+    if (!tlsClientCa.empty()) o.tlsClientCaPem = invr::wire::readPemFile(tlsClientCa, "--tls-client-ca");
+    o.clientToken = tokenFrom(clientTokenFile, "INVR_CLIENT_TOKEN", "--client-token-file");
+    o.workerToken = tokenFrom(workerTokenFile, "INVR_WORKER_TOKEN", "--worker-token-file");
+  } catch (const std::exception& e) {
+    std::cerr << "invr-server: " << e.what() << "\n";
+    return 2;
+  }
   o.maxAssetBytes = uint64_t(maxAssetMb * 1024 * 1024);
   o.maxJobBytes = uint64_t(maxJobMb * 1024 * 1024);
-  if (o.address.rfind("127.0.0.1:", 0) != 0 && o.address.rfind("localhost:", 0) != 0 && o.address.rfind("[::1]:", 0) != 0)
-    spdlog::warn("listening on {}: not loopback, and the service has no authentication", o.address);
 
   // Signals are taken by a waiting thread, so shutdown runs outside a signal handler.
   sigset_t set;

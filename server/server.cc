@@ -15,6 +15,7 @@
 #include "proto/wire/wire.h"
 #include "server/admission.h"
 #include "server/asset_store.h"
+#include "server/auth.h"
 #include "server/client_service.h"
 #include "server/control_queue.h"
 #include "server/job_book.h"
@@ -34,6 +35,7 @@ struct Server::Impl {
   Scheduler scheduler;
   Admission admission;
   PreparedProblem prepared;
+  Authenticator auth;
   std::atomic<bool> stopping{false};
   JobRunner runner;
   std::unique_ptr<ControlQueue> control;
@@ -50,6 +52,7 @@ struct Server::Impl {
         book(store, opt.maxQueued),
         scheduler(SchedulerOptions{opt.leaseSeconds, opt.heartbeatTimeoutSeconds, opt.maxAttempts, opt.assignGraceSeconds}),
         admission(assets, opt.maxJobBytes, [this] { return scheduler.maxWorkerThreads(); }),
+        auth(opt.clientToken, opt.workerToken),
         runner(RunnerOptions{opt.finalSpp, opt.finalViews}, store, book, scheduler, admission, prepared, stopping) {}
   ~Impl() {
     if (storeLock >= 0) ::close(storeLock);
@@ -71,8 +74,35 @@ Server::Server(ServerOptions options) : impl_(std::make_unique<Impl>(std::move(o
 
 Server::~Server() { shutdown(); }
 
+namespace {
+
+// TLS when a certificate is given; plaintext on loopback, or beyond it only when told so.
+std::shared_ptr<grpc::ServerCredentials> credentials(const ServerOptions& o) {
+  if (o.tlsCertPem.empty() != o.tlsKeyPem.empty()) throw InputError("--tls-cert and --tls-key go together (the server's certificate and its key)");
+  if (!o.tlsClientCaPem.empty() && o.tlsCertPem.empty()) throw InputError("--tls-client-ca needs --tls-cert and --tls-key (mutual TLS is TLS)");
+  if (!o.clientToken.empty() && o.clientToken == o.workerToken)
+    throw InputError("the client token and the worker token are the same; a client could then connect workers");
+  if (!o.tlsCertPem.empty()) {
+    grpc::SslServerCredentialsOptions ssl(o.tlsClientCaPem.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                                                  : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+    ssl.pem_root_certs = o.tlsClientCaPem;
+    ssl.pem_key_cert_pairs.push_back({o.tlsKeyPem, o.tlsCertPem});
+    return grpc::SslServerCredentials(ssl);
+  }
+  if (!wire::isLoopbackAddress(o.address)) {
+    if (!o.insecure)
+      throw InputError("listening on " + o.address + " (not loopback) needs TLS (--tls-cert and --tls-key) or --insecure");
+    spdlog::warn("listening on {} without TLS (--insecure): anyone on the network can read the traffic{}", o.address,
+                 o.clientToken.empty() || o.workerToken.empty() ? " and, without both tokens, use the service" : ", tokens included");
+  }
+  return grpc::InsecureServerCredentials();
+}
+
+}  // namespace
+
 int Server::start() {
   Impl& s = *impl_;
+  auto creds = credentials(s.opt);
   // One server per store: a second one would split clients between two views of the same jobs.
   std::filesystem::create_directories(s.opt.storeDir);
   s.storeLock = ::open((s.opt.storeDir / "LOCK").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
@@ -80,8 +110,9 @@ int Server::start() {
     throw InputError("store '" + s.opt.storeDir.string() + "' is in use by another invr-server");
   s.book.load();
   s.control = std::make_unique<ControlQueue>();
-  s.clientService = std::make_unique<ClientService>(s.book, s.admission, s.prepared, s.scheduler, s.assets, s.opt.maxAssetBytes, *s.control);
-  s.workerService = std::make_unique<WorkerService>(s.scheduler, s.assets);
+  s.clientService =
+      std::make_unique<ClientService>(s.book, s.admission, s.prepared, s.scheduler, s.assets, s.opt.maxAssetBytes, *s.control, s.auth);
+  s.workerService = std::make_unique<WorkerService>(s.scheduler, s.assets, s.auth);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder b;
@@ -89,7 +120,7 @@ int Server::start() {
   // Exclusive bind: without this gRPC sets SO_REUSEPORT, and a second server on the same port
   // would start and take half of the connections.
   b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
-  b.AddListeningPort(s.opt.address, grpc::InsecureServerCredentials(), &port);
+  b.AddListeningPort(s.opt.address, creds, &port);
   b.SetMaxReceiveMessageSize(wire::kMaxMessageBytes);
   b.SetMaxSendMessageSize(wire::kMaxMessageBytes);
   b.RegisterService(s.clientService.get());
@@ -98,7 +129,12 @@ int Server::start() {
   if (!s.grpcServer || port == 0)
     throw std::runtime_error("cannot listen on " + s.opt.address + " (address in use, perhaps by another invr-server, or not a local address)");
   for (int i = 0; i < std::max(1, s.opt.maxRunningJobs); ++i) s.runnerThreads.emplace_back([&s] { s.runnerLoop(); });
-  spdlog::info("invr-server listening on port {} (store {}, up to {} jobs at once)", port, s.opt.storeDir.string(), s.opt.maxRunningJobs);
+  spdlog::info("invr-server listening on port {} ({}{}; store {}, up to {} jobs at once)", port, s.opt.tlsCertPem.empty() ? "plaintext" : "TLS",
+               s.opt.tlsClientCaPem.empty() ? "" : " with client certificates",
+               s.opt.storeDir.string(), s.opt.maxRunningJobs);
+  if (s.auth.enabled(CallerRole::Client) || s.auth.enabled(CallerRole::Worker))
+    spdlog::info("bearer tokens required: client API {}, worker API {}", s.auth.enabled(CallerRole::Client) ? "yes" : "no",
+                 s.auth.enabled(CallerRole::Worker) ? "yes" : "no");
   return port;
 }
 

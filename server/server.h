@@ -32,6 +32,12 @@ struct ServerOptions {
   // Memory one job may take: its textures, meshes and targets as the server validates them, plus
   // the per-worker state of `invr plan`'s model. Beyond it: RESOURCE_EXHAUSTED at submission.
   uint64_t maxJobBytes = uint64_t(2) << 30;
+  // Transport security. A non-loopback address needs TLS (certificate and key, PEM) or `insecure`.
+  std::string tlsCertPem, tlsKeyPem;
+  std::string tlsClientCaPem;  // non-empty: clients and workers must present a certificate it signed (mutual TLS)
+  bool insecure = false;       // allow plaintext beyond loopback (a warning is logged)
+  // Bearer tokens; empty: that API is not checked. They must differ.
+  std::string clientToken, workerToken;
   int finalSpp = 64;                     // final renders written with the results
   int finalViews = 4;                    // ... for the first this many views
 };

@@ -37,13 +37,22 @@ class WorkerStream final : public grpc::ServerBidiReactor<v1::WorkerMessage, v1:
   WriteQueue<WorkerStream, v1::ServerMessage> out_;
 };
 
+// A connection refused before its first message (authentication).
+class RefusedStream final : public grpc::ServerBidiReactor<v1::WorkerMessage, v1::ServerMessage> {
+ public:
+  explicit RefusedStream(grpc::Status st) { Finish(std::move(st)); }
+  void OnDone() override { delete this; }
+};
+
 }  // namespace
 
-grpc::ServerBidiReactor<v1::WorkerMessage, v1::ServerMessage>* WorkerService::Connect(grpc::CallbackServerContext*) {
+grpc::ServerBidiReactor<v1::WorkerMessage, v1::ServerMessage>* WorkerService::Connect(grpc::CallbackServerContext* ctx) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Worker, "Connect"); !st.ok()) return new RefusedStream(st);
   return new WorkerStream(scheduler_);
 }
 
-grpc::ServerWriteReactor<v1::AssetChunk>* WorkerService::FetchAsset(grpc::CallbackServerContext*, const v1::FetchAssetRequest* req) {
+grpc::ServerWriteReactor<v1::AssetChunk>* WorkerService::FetchAsset(grpc::CallbackServerContext* ctx, const v1::FetchAssetRequest* req) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Worker, "FetchAsset"); !st.ok()) return new FailedFileSender(st);
   if (!assets_.has(req->sha256()))
     return new FailedFileSender(grpc::Status(grpc::StatusCode::NOT_FOUND, "no asset " + req->sha256().substr(0, 64)));
   return new FileSender(assets_.path(req->sha256()));

@@ -4,13 +4,15 @@
 
 #include "invr/v1/service.grpc.pb.h"
 #include "server/asset_store.h"
+#include "server/auth.h"
 #include "server/scheduler.h"
 
 namespace invr::server {
 
 class WorkerService final : public invr::v1::WorkerService::CallbackService {
  public:
-  WorkerService(Scheduler& scheduler, const AssetStore& assets) : scheduler_(scheduler), assets_(assets) {}
+  WorkerService(Scheduler& scheduler, const AssetStore& assets, const Authenticator& auth)
+      : scheduler_(scheduler), assets_(assets), auth_(auth) {}
 
   grpc::ServerBidiReactor<invr::v1::WorkerMessage, invr::v1::ServerMessage>* Connect(grpc::CallbackServerContext*) override;
   grpc::ServerWriteReactor<invr::v1::AssetChunk>* FetchAsset(grpc::CallbackServerContext*, const invr::v1::FetchAssetRequest* req) override;
@@ -18,6 +20,7 @@ class WorkerService final : public invr::v1::WorkerService::CallbackService {
  private:
   Scheduler& scheduler_;
   const AssetStore& assets_;
+  const Authenticator& auth_;
 };
 
 }  // namespace invr::server

@@ -25,7 +25,19 @@ int main(int argc, char** argv) {
   app.add_option("--max-memory-mb", o.maxMemoryMb, "evict sessions while resident memory exceeds this (0: half the RAM)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--cache", o.cacheDir, "folder for fetched assets (default: a temporary folder)");
   app.add_option("--parent-pid", o.parentPid, "exit when this process exits");
+  std::string tlsCa, tlsCert, tlsKey, tlsName, tokenFile;
+  app.add_option("--tls-ca", tlsCa, "CA certificate (PEM) that signed the server's: connect over TLS");
+  app.add_option("--tls-cert", tlsCert, "client certificate (PEM) for a server that requires one (mutual TLS)");
+  app.add_option("--tls-key", tlsKey, "the client certificate's private key (PEM)");
+  app.add_option("--tls-server-name", tlsName, "name expected in the server's certificate (default: the host of --server)");
+  app.add_option("--token-file", tokenFile, "file holding the server's worker token (default: $INVR_WORKER_TOKEN)");
   CLI11_PARSE(app, argc, argv);
+  try {
+    o.security = invr::wire::loadClientSecurity(tlsCa, tlsCert, tlsKey, tlsName, tokenFile, "INVR_WORKER_TOKEN");
+  } catch (const std::exception& e) {
+    std::cerr << "invr-worker: " << e.what() << "\n";
+    return 2;
+  }
   // SIGTERM: finish (and answer) the task in hand, then leave.
   struct sigaction sa {};
   sa.sa_handler = onSignal;

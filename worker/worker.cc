@@ -73,6 +73,13 @@ class Worker {
     while (!shouldStop()) {
       bool served = serveOnce();
       if (shouldStop()) break;
+      if (!refusal_.ok()) {  // wrong credentials do not fix themselves: say so and stop
+        spdlog::error("worker {}: the server refused this worker: {} ({}); check --token-file / $INVR_WORKER_TOKEN and the TLS options",
+                      opt_.name, refusal_.error_message(), refusal_.error_code() == grpc::StatusCode::PERMISSION_DENIED ? "PERMISSION_DENIED" : "UNAUTHENTICATED");
+        std::error_code ec;
+        std::filesystem::remove_all(opt_.cacheDir, ec);
+        return kExitRefused;
+      }
       if (served) backoff = 0.1;
       // The server went away (or never answered): sessions may belong to a server that no longer
       // exists, so drop them; a reassigned shard is rebuilt with a burn-in.
@@ -89,13 +96,19 @@ class Worker {
   }
 
  private:
+  void noteRefusal(const grpc::Status& st) {
+    if (st.error_code() == grpc::StatusCode::UNAUTHENTICATED || st.error_code() == grpc::StatusCode::PERMISSION_DENIED) refusal_ = st;
+  }
+  grpc::Status refusal_ = grpc::Status::OK;
+
   bool shouldStop() const { return stop_.load() || (opt_.parentPid && getppid() != opt_.parentPid); }
 
   // One connection. Returns true if it got as far as the server's welcome.
   bool serveOnce() {
-    auto channel = wire::channel(opt_.server);
+    auto channel = wire::channel(opt_.server, opt_.security);
     auto stub = v1::WorkerService::NewStub(channel);
     grpc::ClientContext ctx;
+    wire::addToken(ctx, opt_.security);
     auto stream = stub->Connect(&ctx);
     std::mutex wmu;
     auto write = [&](const v1::WorkerMessage& m) {
@@ -106,7 +119,7 @@ class Worker {
     hello.mutable_hello()->set_name(opt_.name);
     hello.mutable_hello()->set_capacity(uint32_t(opt_.threads > 0 ? opt_.threads : int(std::thread::hardware_concurrency())));
     if (!write(hello)) {
-      stream->Finish();
+      noteRefusal(stream->Finish());
       return false;
     }
     std::mutex mu;
@@ -181,15 +194,17 @@ class Worker {
       std::lock_guard<std::mutex> lk(wmu);
       stream->WritesDone();
     }
-    ctx.TryCancel();
     {
+      // The server ended the stream (its status is then what Finish reports, e.g. a refusal), or
+      // we are leaving: cancel to unblock the reader.
       std::lock_guard<std::mutex> lk(mu);
+      if (connected) ctx.TryCancel();
       connected = false;
       cv.notify_all();
     }
     reader.join();
     heart.join();
-    stream->Finish();
+    noteRefusal(stream->Finish());
     return welcomed;
   }
 
@@ -223,8 +238,9 @@ class Worker {
   std::filesystem::path fetchAsset(const std::string& hash) {
     std::filesystem::path path = opt_.cacheDir / hash;
     if (std::filesystem::exists(path)) return path;
-    auto stub = v1::WorkerService::NewStub(wire::channel(opt_.server));
+    auto stub = v1::WorkerService::NewStub(wire::channel(opt_.server, opt_.security));
     grpc::ClientContext ctx;
+    wire::addToken(ctx, opt_.security);
     v1::FetchAssetRequest req;
     req.set_sha256(hash);
     auto reader = stub->FetchAsset(&ctx, req);

@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <string>
 
+#include "proto/wire/security.h"
+
 namespace invr::worker {
 
 struct WorkerOptions {
@@ -17,7 +19,11 @@ struct WorkerOptions {
   std::filesystem::path cacheDir;  // fetched assets; default: a temporary folder
   int parentPid = 0;             // exit when this process is gone (local workers of `invr run`)
   double heartbeatSeconds = 1.0;
+  invr::wire::ClientSecurity security;  // TLS and the worker token
 };
+
+// Exit code when the server refuses the worker's credentials (UNAUTHENTICATED, PERMISSION_DENIED).
+inline constexpr int kExitRefused = 3;
 
 // Serves until `stop` becomes true (SIGTERM): the task in hand is finished and answered first.
 // Reconnects with back-off when the server goes away. Returns the process exit code.

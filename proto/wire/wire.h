@@ -6,6 +6,8 @@
 #include <memory>
 #include <string>
 
+#include "proto/wire/security.h"
+
 namespace invr::wire {
 
 // Tasks carry the parameter vector and results carry images; gRPC's 4 MiB default would cap a job
@@ -14,7 +16,9 @@ namespace invr::wire {
 inline constexpr int kMaxMessageBytes = 512 << 20;
 inline constexpr size_t kChunkBytes = 1 << 20;
 
-inline std::shared_ptr<grpc::Channel> channel(const std::string& address) {
+// A channel to `address`: plaintext, or TLS when `security` has a CA (then its client certificate,
+// if any, for mutual TLS). The bearer token goes per call (addToken).
+inline std::shared_ptr<grpc::Channel> channel(const std::string& address, const ClientSecurity& security = {}) {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(kMaxMessageBytes);
   args.SetMaxSendMessageSize(kMaxMessageBytes);
@@ -23,7 +27,13 @@ inline std::shared_ptr<grpc::Channel> channel(const std::string& address) {
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
-  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+  if (!security.tls()) return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+  grpc::SslCredentialsOptions ssl;
+  ssl.pem_root_certs = security.caPem;
+  ssl.pem_cert_chain = security.certPem;
+  ssl.pem_private_key = security.keyPem;
+  if (!security.serverName.empty()) args.SetSslTargetNameOverride(security.serverName);
+  return grpc::CreateCustomChannel(address, grpc::SslCredentials(ssl), args);
 }
 
 }  // namespace invr::wire

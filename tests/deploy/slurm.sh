@@ -79,11 +79,18 @@ done
 [ "$ready" -eq 1 ] || { dump; skip "the Slurm node never became idle"; }
 echo "slurm: up ($(sinfo -h -o '%P %D %t %c'))"
 
-# A small job: cornell's built-in job, 3 steps, low-spp targets, on 2 tasks of 1 CPU (2 workers).
+# A small job: cornell's built-in job, 3 steps, low-spp targets, on 2 tasks of 1 CPU (2 workers),
+# over TLS (a CA and a certificate for this node) with the batch job's own tokens.
 cd "$ROOT/work"
+mkdir -p "$ROOT/tls"
+openssl req -x509 -newkey rsa:2048 -nodes -keyout "$ROOT/tls/ca.key" -out "$ROOT/tls/ca.pem" -days 2 -subj "/CN=invr slurm test CA" 2>/dev/null
+openssl req -newkey rsa:2048 -nodes -keyout "$ROOT/tls/server.key" -out "$ROOT/tls/server.csr" -subj "/CN=$(hostname -s)" 2>/dev/null
+printf "subjectAltName=DNS:%s,DNS:localhost,IP:127.0.0.1\n" "$(hostname -s)" > "$ROOT/tls/server.ext"
+openssl x509 -req -in "$ROOT/tls/server.csr" -CA "$ROOT/tls/ca.pem" -CAkey "$ROOT/tls/ca.key" -CAcreateserial \
+  -out "$ROOT/tls/server.pem" -days 2 -extfile "$ROOT/tls/server.ext" 2>/dev/null
 set +e
 timeout 600 sbatch --wait --ntasks=2 --cpus-per-task=1 --output="$ROOT/work/invr-%j.log" \
-  --export=ALL,INVR_BIN="$BIN",INVR_PORT="$(free_port)",INVR_ARGS="--steps 3 --target-spp 4" \
+  --export=ALL,INVR_BIN="$BIN",INVR_PORT="$(free_port)",INVR_ARGS="--steps 3 --target-spp 4",INVR_TLS_CERT="$ROOT/tls/server.pem",INVR_TLS_KEY="$ROOT/tls/server.key",INVR_TLS_CA="$ROOT/tls/ca.pem" \
   "$REPO/deploy/slurm/invr.sbatch" cornell "$ROOT/work/out"
 code=$?
 set -e
@@ -98,6 +105,9 @@ for f in parameters.json convergence.csv final_view0.exr; do
 done
 workers=$(grep -c "threads) connected" "$ROOT/work/out/server.log" || true)
 [ "$workers" -ge 2 ] || { dump; echo "slurm: expected 2 workers, the server saw $workers"; exit 1; }
+grep -q "(TLS; store" "$ROOT/work/out/server.log" || { dump; echo "slurm: the server did not serve TLS"; exit 1; }
+grep -q "bearer tokens required: client API yes, worker API yes" "$ROOT/work/out/server.log" || { dump; echo "slurm: no tokens"; exit 1; }
+[ "$(stat -c %a "$ROOT/work/out/.tokens/client")" = 600 ] || { echo "slurm: the token file is readable by others"; exit 1; }
 cat "$ROOT"/work/invr-*.log
 echo "slurm: first job ok ($workers workers; results in place)"
 

@@ -275,7 +275,8 @@ TEST(Service, CancelWhileRunningIsIdempotent) {
 TEST(Service, FullQueueIsResourceExhausted) {
   TempDir tmp;
   Cluster c(tmp.path);
-  c.startServer(0, {"--max-queued", "1"});  // no workers: the first job runs (waiting), the next queues
+  // No workers, one job at a time: the first job runs (waiting), the next queues.
+  c.startServer(0, {"--max-queued", "1", "--max-running-jobs", "1"});
   std::string a, b;
   ASSERT_TRUE(c.submit(smallJob("cornell", 5), &a).ok());
   for (int i = 0; i < 100 && c.get(a).state() != v1::RUNNING; ++i) std::this_thread::sleep_for(50ms);
