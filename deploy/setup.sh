@@ -22,7 +22,7 @@ PACKAGES=(
   python3 python3-grpcio python3-matplotlib
   clang libclang-rt-14-dev
   slurm-wlm munge
-  openssl iproute2
+  openssl iproute2 libcpp-httplib-dev
 )
 
 missing=()

@@ -134,6 +134,22 @@ size_t JobBook::running() const {
   return running_;
 }
 
+std::array<size_t, 5> JobBook::countByState() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  std::array<size_t, 5> n{};
+  for (const auto& [id, j] : jobs_) {
+    switch (j.rec.state()) {
+      case v1::QUEUED: ++n[0]; break;
+      case v1::RUNNING: ++n[1]; break;
+      case v1::SUCCEEDED: ++n[2]; break;
+      case v1::FAILED: ++n[3]; break;
+      case v1::CANCELLED: ++n[4]; break;
+      default: break;
+    }
+  }
+  return n;
+}
+
 v1::JobSpec JobBook::spec(const std::string& id) const {
   std::lock_guard<std::mutex> lk(mu_);
   return at(id).rec.spec();

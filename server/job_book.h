@@ -7,6 +7,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <array>
 #include <condition_variable>
 #include <deque>
 #include <limits>
@@ -51,6 +52,8 @@ class JobBook {
   std::optional<std::string> take();
   size_t queued() const;
   size_t running() const;
+  // Jobs by state: queued, running, succeeded, failed, cancelled.
+  std::array<size_t, 5> countByState() const;
 
   // ---- a job's life
   invr::v1::JobSpec spec(const std::string& id) const;

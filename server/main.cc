@@ -33,6 +33,9 @@ int main(int argc, char** argv) {
                  "memory one job may take (textures, meshes, targets and per-worker state); larger jobs are refused (RESOURCE_EXHAUSTED)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  app.add_option("--metrics-address", o.metricsAddress, "serve Prometheus metrics at http://HOST:PORT/metrics (default: none)");
+  app.add_option("--health-address", o.healthAddress,
+                 "also serve the gRPC health service alone, in plaintext, on HOST:PORT (for probes that cannot do TLS)");
   std::string tlsCert, tlsKey, tlsClientCa, clientTokenFile, workerTokenFile;
   app.add_option("--tls-cert", tlsCert, "server certificate chain (PEM): serve TLS; needed to listen beyond loopback (or --insecure)");
   app.add_option("--tls-key", tlsKey, "the certificate's private key (PEM)");

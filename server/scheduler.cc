@@ -154,6 +154,18 @@ size_t Scheduler::connectedWorkers() const {
   return size_t(std::count_if(workers_.begin(), workers_.end(), [](const auto& kv) { return kv.second.alive(); }));
 }
 
+Scheduler::Counts Scheduler::counts() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  Counts c;
+  for (const auto& [id, w] : workers_) {
+    if (!w.alive()) continue;
+    ++c.connected;
+    c.busy += w.inFlight != 0;
+    c.threads += w.capacity;
+  }
+  return c;
+}
+
 unsigned Scheduler::maxWorkerThreads() const {
   std::lock_guard<std::mutex> lk(mu_);
   unsigned n = 0;

@@ -86,6 +86,10 @@ class Scheduler {
   std::vector<invr::v1::WorkerStatus> workers() const;
   size_t connectedWorkers() const;
   unsigned maxWorkerThreads() const;  // of the largest connected worker; 0 with none
+  struct Counts {
+    size_t connected = 0, busy = 0, threads = 0;
+  };
+  Counts counts() const;
 
   // ---- jobs (job runners)
   void addJob(ScheduledJob job);

@@ -21,6 +21,7 @@
 #include "server/job_book.h"
 #include "server/job_runner.h"
 #include "server/job_store.h"
+#include "server/metrics.h"
 #include "server/scheduler.h"
 #include "server/worker_service.h"
 
@@ -41,7 +42,10 @@ struct Server::Impl {
   std::unique_ptr<ControlQueue> control;
   std::unique_ptr<ClientService> clientService;
   std::unique_ptr<WorkerService> workerService;
-  std::unique_ptr<grpc::Server> grpcServer;
+  std::unique_ptr<grpc::Server> grpcServer, healthServer;
+  StepMetrics stepMetrics;
+  std::unique_ptr<MetricsEndpoint> metrics;
+  int healthPort = 0;
   std::vector<std::thread> runnerThreads;
   int storeLock = -1;  // flock on <store>/LOCK while this server runs
 
@@ -128,6 +132,26 @@ int Server::start() {
   s.grpcServer = b.BuildAndStart();
   if (!s.grpcServer || port == 0)
     throw std::runtime_error("cannot listen on " + s.opt.address + " (address in use, perhaps by another invr-server, or not a local address)");
+  if (!s.opt.healthAddress.empty()) {
+    // Only the health service (every server has it): Kubernetes' gRPC probes speak plaintext.
+    grpc::ServerBuilder hb;
+    hb.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+    hb.AddListeningPort(s.opt.healthAddress, grpc::InsecureServerCredentials(), &s.healthPort);
+    s.healthServer = hb.BuildAndStart();
+    if (!s.healthServer || s.healthPort == 0) throw std::runtime_error("--health-address " + s.opt.healthAddress + ": cannot listen there");
+  }
+  if (!s.opt.metricsAddress.empty()) {
+    s.runner.onStep = [&s](double seconds) { s.stepMetrics.stepDone(seconds); };
+    s.metrics = std::make_unique<MetricsEndpoint>(s.opt.metricsAddress, [&s] {
+      MetricsSnapshot m;
+      auto n = s.book.countByState();
+      m.queued = n[0], m.running = n[1], m.succeeded = n[2], m.failed = n[3], m.cancelled = n[4];
+      auto c = s.scheduler.counts();
+      m.workers = c.connected, m.busyWorkers = c.busy, m.workerThreads = c.threads;
+      return s.stepMetrics.render(m);
+    });
+    spdlog::info("metrics on http://{}/metrics", s.opt.metricsAddress);
+  }
   for (int i = 0; i < std::max(1, s.opt.maxRunningJobs); ++i) s.runnerThreads.emplace_back([&s] { s.runnerLoop(); });
   spdlog::info("invr-server listening on port {} ({}{}; store {}, up to {} jobs at once)", port, s.opt.tlsCertPem.empty() ? "plaintext" : "TLS",
                s.opt.tlsClientCaPem.empty() ? "" : " with client certificates",
@@ -147,8 +171,13 @@ void Server::shutdown() {
   for (auto& t : s.runnerThreads)
     if (t.joinable()) t.join();
   s.control->stop();
+  s.metrics.reset();
   s.grpcServer->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  if (s.healthServer) s.healthServer->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
 }
+
+int Server::metricsPort() const { return impl_->metrics ? impl_->metrics->port() : 0; }
+int Server::healthPort() const { return impl_->healthPort; }
 
 void Server::wait() {
   if (impl_->grpcServer) impl_->grpcServer->Wait();

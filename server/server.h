@@ -38,6 +38,8 @@ struct ServerOptions {
   bool insecure = false;       // allow plaintext beyond loopback (a warning is logged)
   // Bearer tokens; empty: that API is not checked. They must differ.
   std::string clientToken, workerToken;
+  std::string metricsAddress;  // host:port for Prometheus metrics at /metrics over HTTP (empty: none)
+  std::string healthAddress;   // host:port of a plaintext listener with only the gRPC health service (probes that cannot do TLS)
   int finalSpp = 64;                     // final renders written with the results
   int finalViews = 4;                    // ... for the first this many views
 };
@@ -54,6 +56,8 @@ class Server {
   // Stops accepting calls, ends streams, joins threads. Unfinished jobs stay in the store.
   void shutdown();
   void wait();
+  int metricsPort() const;  // 0 without a metrics endpoint
+  int healthPort() const;   // 0 without a health listener
 
   struct Impl;
 

@@ -2,6 +2,9 @@
 #include "tests/service/cluster.h"
 
 #include <grpcpp/generic/generic_stub.h>
+#include <httplib.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 
 #include "reflection_probe.grpc.pb.h"
 
@@ -475,6 +478,92 @@ TEST(Service, EvictedSessionsAreRebuiltAndTheJobCompletes) {
   std::ifstream log(c.workerLog(0));
   std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("evicting session"), std::string::npos);
+}
+
+// grpc.health.v1.Health/Check with an empty request on `address`; the response bytes (SERVING
+// is field 1 = 1: "\x08\x01").
+std::pair<grpc::Status, std::string> healthCheck(const std::string& address) {
+  auto ch = wire::channel(address);
+  grpc::GenericStub generic(ch);
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + 10s);
+  grpc::ByteBuffer resp;
+  grpc::Slice empty("", 0);
+  grpc::ByteBuffer req(&empty, 1);
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status st;
+  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &req, &resp, [&](grpc::Status s) {
+    std::lock_guard<std::mutex> lk(m);
+    st = s;
+    done = true;
+    cv.notify_all();
+  });
+  std::unique_lock<std::mutex> lk(m);
+  cv.wait_for(lk, 15s, [&] { return done; });
+  std::string bytes;
+  std::vector<grpc::Slice> slices;
+  if (done && st.ok() && resp.Dump(&slices).ok())
+    for (auto& sl : slices) bytes.append(reinterpret_cast<const char*>(sl.begin()), sl.size());
+  return {done ? st : grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "no answer"), bytes};
+}
+
+int freePort() {
+  int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  ::close(fd);
+  return ntohs(a.sin_port);
+}
+
+TEST(Service, MetricsAndThePlaintextHealthListenerAreServedWithoutTokens) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  { std::ofstream(tmp.path / "client.tok") << "client-secret\n"; }
+  const int metrics = freePort(), health = freePort();
+  // The worker API is open here (Cluster's workers carry no token); the client API is not.
+  c.startServer(0, {"--metrics-address", "127.0.0.1:" + std::to_string(metrics), "--health-address", "127.0.0.1:" + std::to_string(health),
+                    "--client-token-file", (tmp.path / "client.tok").string()});
+  // The health service needs no token, on either port.
+  for (const std::string& a : {"127.0.0.1:" + std::to_string(health), c.address()}) {
+    auto [st, bytes] = healthCheck(a);
+    EXPECT_TRUE(st.ok()) << a << ": " << st.error_message();
+    EXPECT_EQ(bytes, std::string("\x08\x01", 2)) << a;
+  }
+  // The client API does.
+  std::string id;
+  EXPECT_EQ(c.submit(smallJob("cornell", 1), &id).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  httplib::Client http("127.0.0.1", metrics);
+  auto scrape = [&] {
+    auto r = http.Get("/metrics");
+    EXPECT_TRUE(r && r->status == 200);
+    return r ? r->body : std::string();
+  };
+  std::string body = scrape();
+  for (const char* line : {"invr_queue_depth 0", "invr_running_jobs 0", "invr_connected_workers 0", "invr_steps_total 0",
+                           "invr_step_seconds_count 0", "# TYPE invr_step_seconds histogram", "invr_jobs{state=\"succeeded\"} 0"})
+    EXPECT_NE(body.find(line), std::string::npos) << line << "\n" << body;
+  // A job of 2 steps, submitted with the token: the counters follow.
+  c.startWorker(1);
+  {
+    grpc::ClientContext ctx;
+    ctx.AddMetadata("authorization", "Bearer client-secret");
+    v1::SubmitJobRequest req;
+    *req.mutable_spec() = smallJob("cornell", 2);
+    v1::SubmitJobResponse resp;
+    ASSERT_TRUE(c.stub().SubmitJob(&ctx, req, &resp).ok());
+    id = resp.job_id();
+  }
+  for (int i = 0; i < 600 && scrape().find("invr_jobs{state=\"succeeded\"} 1") == std::string::npos; ++i) std::this_thread::sleep_for(100ms);
+  body = scrape();
+  for (const char* line : {"invr_steps_total 2", "invr_step_seconds_count 2", "invr_connected_workers 1", "invr_jobs{state=\"succeeded\"} 1",
+                           "invr_running_jobs 0", "invr_step_seconds_bucket{le=\"+Inf\"} 2"})
+    EXPECT_NE(body.find(line), std::string::npos) << line << "\n" << body;
 }
 
 TEST(Service, HealthAndReflectionAreServed) {
