@@ -388,13 +388,14 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
     leases_.erase(job.leaseOf[s]);
     job.leaseOf[s] = 0;
   };
-  auto retry = [&](size_t s, const std::string& why) {
+  // A worker that said it was leaving hands its task back: not a failed attempt.
+  auto retry = [&](size_t s, const std::string& why, bool failed = true) {
     job.info.log("shard " + std::to_string(s) + ": " + why + "; reassigning");
     if (job.leaseOf[s]) job.avoid[s] = leases_[job.leaseOf[s]].worker;
     job.assignment[s] = 0;
     dropLease(s);
     job.ready[s] = &*tasks[s];
-    if (++job.attempts[s] >= opt_.maxAttempts)
+    if (failed && ++job.attempts[s] >= opt_.maxAttempts)
       throw JobFailed{"shard " + std::to_string(s) + " failed " + std::to_string(job.attempts[s]) + " times (last: " + why + ")"};
   };
   try {
@@ -446,7 +447,10 @@ std::vector<std::optional<v1::TaskResult>> Scheduler::run(const std::string& id,
           retry(s, "worker " + w.name + " failed: " +
                        (l.result.spec_unknown() ? std::string("it did not take the job's spec") : l.result.error()));
         } else if (!w.alive()) {
-          retry(s, "worker " + w.name + " lost");
+          if (w.leaving)
+            retry(s, "worker " + w.name + " left and handed its task back", false);
+          else
+            retry(s, "worker " + w.name + " lost");
         } else if (Clock::now() > l.deadline) {
           w.suspect = true;
           w.expiredTasks.insert(l.taskId);

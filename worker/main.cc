@@ -24,6 +24,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-sessions", o.maxSessions, "per-job sessions kept (least recently used evicted)")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--max-memory-mb", o.maxMemoryMb, "evict sessions while resident memory exceeds this (0: half the RAM)")->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--cache", o.cacheDir, "folder for fetched assets (default: a temporary folder)");
+  app.add_option("--drain-seconds", o.drainSeconds,
+                 "on SIGTERM, how long the task in hand may take before it is handed back to the server")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--parent-pid", o.parentPid, "exit when this process exits");
   std::string tlsCa, tlsCert, tlsKey, tlsName, tokenFile;
   app.add_option("--tls-ca", tlsCa, "CA certificate (PEM) that signed the server's: connect over TLS");

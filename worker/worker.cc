@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "core/diff/problem.h"
@@ -154,9 +155,28 @@ class Worker {
     });
     std::thread heart([&] {
       std::unique_lock<std::mutex> lk(mu);
-      while (connected && !shouldStop()) {
-        cv.wait_for(lk, std::chrono::duration<double>(opt_.heartbeatSeconds));
+      std::optional<std::chrono::steady_clock::time_point> stopSince;
+      while (connected) {
+        cv.wait_for(lk, std::chrono::duration<double>(stopSince ? std::min(0.2, opt_.heartbeatSeconds) : opt_.heartbeatSeconds));
         if (!connected) break;
+        if (shouldStop()) {
+          // SIGTERM: tell the server at once (no new task comes), finish the task in hand if it
+          // ends within the drain time, else hand it back (the server reassigns it).
+          if (!stopSince) {
+            stopSince = std::chrono::steady_clock::now();
+            v1::WorkerMessage bye;
+            bye.set_leaving(true);
+            lk.unlock();
+            write(bye);
+            lk.lock();
+            spdlog::info("worker {}: stopping; the task in hand has {:g} s to finish", opt_.name, opt_.drainSeconds);
+          }
+          if (!busy.load()) break;
+          if (!cancel_ && std::chrono::duration<double>(std::chrono::steady_clock::now() - *stopSince).count() > opt_.drainSeconds) {
+            spdlog::info("worker {}: handing task {} back to the server", opt_.name, busy.load());
+            cancel_ = true;
+          }
+        }
         v1::WorkerMessage hb;
         hb.mutable_heartbeat()->set_busy_task(busy.load());
         lk.unlock();

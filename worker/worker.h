@@ -19,6 +19,9 @@ struct WorkerOptions {
   std::filesystem::path cacheDir;  // fetched assets; default: a temporary folder
   int parentPid = 0;             // exit when this process is gone (local workers of `invr run`)
   double heartbeatSeconds = 1.0;
+  // On SIGTERM the task in hand gets this long to finish before it is handed back (keep it below
+  // the orchestrator's grace period, e.g. Kubernetes' terminationGracePeriodSeconds).
+  double drainSeconds = 20;
   invr::wire::ClientSecurity security;  // TLS and the worker token
 };
 

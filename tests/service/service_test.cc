@@ -376,6 +376,32 @@ TEST(Service, WorkerSigtermFinishesItsTaskAndLeaves) {
   EXPECT_EQ(stepsOf(evs), oneTo(8));
 }
 
+TEST(Service, AWorkerStoppedMidTaskHandsItBackWithoutCostingAnAttempt) {
+  // One attempt per shard: a counted failure would fail the job. The first worker is stopped
+  // while it renders its shard's targets (seconds at 128 spp) with no drain time: it tells the
+  // server it is leaving, abandons the task, and the shard moves to the other worker.
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer(0, {"--max-attempts", "1", "--assign-grace", "0"});
+  c.startWorker(1, {"--drain-seconds", "0"});
+  v1::JobSpec job = smallJob("cornell", 2);
+  job.mutable_optimization()->set_target_spp(128);
+  std::string id;
+  ASSERT_TRUE(c.submit(job, &id).ok());
+  c.watch(id, 0, [](const v1::ProgressEvent& e) { return e.has_message() && e.message().rfind("started", 0) == 0; });
+  std::this_thread::sleep_for(500ms);  // the first task is out, rendering targets
+  c.startWorker(1);
+  auto t0 = std::chrono::steady_clock::now();
+  int status = c.terminateWorker(0);
+  double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "status " << status;
+  EXPECT_LT(took, 5.0) << "the worker kept rendering instead of handing the task back";
+  auto evs = c.watch(id);
+  ASSERT_TRUE(evs.back().has_final());
+  EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
+  EXPECT_TRUE(anyMessage(evs, "left and handed its task back"));
+}
+
 TEST(Service, ExpiredLeasesFailTheJobAfterBoundedAttempts) {
   TempDir tmp;
   Cluster c(tmp.path);
