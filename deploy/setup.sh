@@ -2,7 +2,9 @@
 # Installs every Debian 12 package that invr's build, tests, demo and charts need (clang and its
 # runtime libraries for the fuzz targets of deploy/fuzz.sh: libFuzzer is in libclang-rt-14-dev;
 # Slurm and munge for the real-Slurm test of deploy/slurm/invr.sbatch; openssl makes the TLS
-# test's certificates; iproute2 gives `ip netns` for the multi-host test).
+# test's certificates; iproute2 gives `ip netns` for the multi-host test; Node.js, npm and kubectl
+# render and validate the Kubernetes manifests offline, with the validator's npm packages
+# installed here into deploy/k8s/validator/node_modules).
 # Idempotent and non-interactive; run as root (or through sudo).
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
@@ -10,30 +12,50 @@ export DEBIAN_FRONTEND=noninteractive
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
-PACKAGES=(
+# What building invr needs (the container image's build stage installs only these: --build-only).
+BUILD_PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
   libembree-dev libtbb-dev
   libopenimageio-dev libopenexr-dev libimath-dev
   libprotobuf-dev protobuf-compiler
   libgrpc++-dev protobuf-compiler-grpc
-  libspdlog-dev libfmt-dev libssl-dev
+  libspdlog-dev libfmt-dev libssl-dev libcpp-httplib-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev nlohmann-json3-dev libpugixml-dev
+)
+# Tests, demo, charts and deployment checks.
+PACKAGES=(
+  "${BUILD_PACKAGES[@]}"
   python3 python3-grpcio python3-matplotlib
   clang libclang-rt-14-dev
   slurm-wlm munge
-  openssl iproute2 libcpp-httplib-dev
+  openssl iproute2
+  nodejs
 )
+if [ "${1:-}" = "--build-only" ]; then PACKAGES=("${BUILD_PACKAGES[@]}"); fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+if [ "${1:-}" != "--build-only" ]; then
+  # Tools that may come from elsewhere on a given machine (a nodejs that bundles npm, a kubectl
+  # from another repository): Debian's packages only when the command is missing.
+  command -v npm > /dev/null || missing+=(npm)
+  command -v kubectl > /dev/null || missing+=(kubernetes-client)
+fi
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#PACKAGES[@]} packages already installed"
-  exit 0
+else
+  echo "setup: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-echo "setup: installing ${missing[*]}"
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ "${1:-}" != "--build-only" ]; then
+  VALIDATOR="$(cd "$(dirname "$0")" && pwd)/k8s/validator"
+  if [ ! -d "$VALIDATOR/node_modules/kubernetes-models" ]; then
+    echo "setup: npm ci in $VALIDATOR (Kubernetes schema validator)"
+    npm ci --prefix "$VALIDATOR" --no-audit --no-fund --loglevel=error
+  fi
+fi
 echo "setup: done"

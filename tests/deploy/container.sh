@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# deploy/container/Dockerfile, checked offline (no registry to pull debian:12 from here): the
+# runtime stage installs a package for every shared library the three executables load
+# directly (from their ELF NEEDED entries, resolved with ldd and dpkg -S on this Debian 12
+# machine), every package it names exists in Debian, and the image runs as a non-root user with
+# the server as its entrypoint.
+set -euo pipefail
+REPO="$(cd "$(dirname "$0")/../.." && pwd)"
+BIN="$1"
+DF="$REPO/deploy/container/Dockerfile"
+fail() { echo "container: $*"; exit 1; }
+
+runtime=$(sed -n '/# runtime-packages-begin/,/# runtime-packages-end/p' "$DF" | tr ' \\' '\n\n' | grep -E '^lib|^ca-certificates$' | sort -u)
+[ -n "$runtime" ] || fail "no runtime package list between the markers"
+for p in $runtime; do
+  apt-cache show "$p" > /dev/null 2>&1 || fail "runtime package '$p' is not a Debian 12 package"
+done
+# Packages every Debian image has (Essential or required by them).
+base="libc6 libgcc-s1"
+for b in invr invr-server invr-worker; do
+  [ -x "$BIN/$b" ] || fail "$BIN/$b not built"
+  for lib in $(objdump -p "$BIN/$b" | awk '/NEEDED/ {print $2}'); do
+    path=$(ldd "$BIN/$b" | awk -v n="$lib" '$1 == n {print $3}')
+    [ -n "$path" ] || fail "$b: $lib does not resolve"
+    real=$(readlink -f "$path")
+    pkg=""
+    # dpkg records a file under /lib or /usr/lib (merged /usr): ask for each spelling.
+    for q in "$path" "$real" "${real#/usr}" "$(dirname "$path")/$(basename "$real")"; do
+      pkg=$(dpkg -S "$q" 2> /dev/null | head -1 | cut -d: -f1) && [ -n "$pkg" ] && break
+    done
+    [ -n "$pkg" ] || fail "$b: no package owns $path"
+    if ! grep -qx "$pkg" <<< "$runtime" && ! grep -qw "$pkg" <<< "$base"; then
+      fail "$b needs $lib from $pkg, which the runtime stage does not install"
+    fi
+  done
+done
+grep -q '^FROM debian:12 AS build' "$DF" || fail "no debian:12 build stage"
+grep -q '^FROM debian:12 AS runtime' "$DF" || fail "no debian:12 runtime stage"
+grep -q 'deploy/setup.sh --build-only' "$DF" || fail "the build stage does not install through deploy/setup.sh --build-only"
+user=$(awk '/^FROM .* AS runtime/ {r=1} r && /^USER / {print $2}' "$DF" | tail -1)
+[ -n "$user" ] && [ "${user%%:*}" != 0 ] && [ "${user%%:*}" != root ] || fail "the runtime stage does not switch to a non-root user ($user)"
+grep -q '^ENTRYPOINT \["invr-server"\]' "$DF" || fail "the entrypoint is not invr-server"
+# The default command's flags exist.
+for f in $(sed -n 's/^CMD \[\(.*\)\]/\1/p' "$DF" | tr ',' '\n' | tr -d ' "' | grep '^--'); do
+  "$BIN/invr-server" --help | grep -q -- "$f" || fail "CMD uses $f, which invr-server does not have"
+done
+echo "container: ok ($(wc -w <<< "$runtime") runtime packages cover the executables' libraries)"
