@@ -113,6 +113,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   });
   addBenchGradientCommands(*bench, exitCode);
   addBenchServiceCommand(*bench, exitCode);
+  addBenchFakeWorkerCommand(*bench, exitCode);
   addBenchPixelCommand(*bench, exitCode);
   addBenchVarianceCommand(*bench, exitCode);
 }

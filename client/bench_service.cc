@@ -12,7 +12,10 @@
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 
+#include <sys/resource.h>
+
 #include <algorithm>
+#include <fstream>
 #include <chrono>
 #include <iostream>
 #include <thread>
@@ -22,6 +25,7 @@
 #include "client/embedded.h"
 #include "client/service_client.h"
 #include "core/diff/zoo_jobs.h"
+#include "core/scene/zoo.h"
 #include "core/optim/local_run.h"
 #include "server/server.h"
 
@@ -35,6 +39,8 @@ struct BenchServiceArgs {
   int steps = 12;
   int repeats = 2;
   bool json = false;
+  int fakeWorkers = 0;
+  double fakeSeconds = 0.25;
 };
 
 // Median seconds per step after the first (robust to another tenant's burst on a shared machine),
@@ -110,7 +116,98 @@ double twoJobsSeconds(const std::vector<v1::JobSpec>& jobs, bool together, std::
   return wall;
 }
 
+double residentMb() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return 0;
+}
+
+double cpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// The server alone (in this process) with N fake workers in processes of their own: its CPU time
+// per step against the step's wall time, its memory across the job, and the bytes that travel.
+void runFake(const BenchServiceArgs& a) {
+  spdlog::set_level(spdlog::level::err);
+  const int n = a.fakeWorkers;
+  auto store = std::filesystem::temp_directory_path() / ("invr-bench-fake-" + std::to_string(getpid()));
+  std::filesystem::remove_all(store);
+  std::filesystem::create_directories(store);
+  server::ServerOptions o;
+  o.storeDir = store / "store";
+  o.assignGraceSeconds = 30;
+  auto srv = std::make_unique<server::Server>(o);
+  int port = srv->start();
+  LocalWorkers fakes;
+  fakes.startFake(n, port, a.fakeSeconds, store);
+  ServiceClient c("127.0.0.1:" + std::to_string(port), wire::ClientSecurity{});
+  if (!c.waitForWorkers(n, 120)) throw std::runtime_error("bench service: the fake workers did not connect");
+  // backlit's job with its views repeated to one per worker, one shard each, every view every step.
+  v1::JobSpec job = zooJob("backlit");
+  v1::Scene scene = zooScene("backlit");
+  std::vector<v1::Camera> cams(scene.views().begin(), scene.views().end());
+  scene.clear_views();
+  for (int v = 0; v < n; ++v) *scene.add_views() = cams[size_t(v) % cams.size()];
+  *job.mutable_scene() = scene;
+  auto* opt = job.mutable_optimization();
+  opt->set_shards(n);
+  opt->set_views_per_step(n);
+  opt->set_steps(a.steps);
+  double rssStart = residentMb(), rssAfterFirst = 0, rssEnd = 0, cpu0 = 0;
+  std::vector<double> stepSeconds, ownSeconds;
+  double prev = -1;
+  auto r = c.submit(job, "");
+  std::atomic<bool> never{false};
+  auto final = c.watch(r.job_id(), 0, [&](const v1::ProgressEvent& e) {
+    if (!e.has_step()) return;
+    if (prev >= 0) {
+      stepSeconds.push_back(e.step().seconds() - prev);
+      ownSeconds.push_back(e.step().transport_seconds() + e.step().update_seconds());
+    } else {
+      rssAfterFirst = residentMb();
+      cpu0 = cpuSeconds();
+    }
+    prev = e.step().seconds();
+  }, never);
+  const double cpu = cpuSeconds() - cpu0;
+  rssEnd = residentMb();
+  if (!final || final->state() != v1::SUCCEEDED) throw std::runtime_error("bench service: fake job did not succeed: " + (final ? final->reason() : ""));
+  srv->shutdown();  // the fake workers' streams end: they write their byte counts and exit
+  uint64_t tasks = 0, taskBytes = 0, resultBytes = 0;
+  for (int i = 1; i <= n; ++i) {
+    auto f = store / ("fake-" + std::to_string(i) + ".stats");
+    for (int k = 0; k < 100 && !std::filesystem::exists(f); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    uint64_t t = 0, in = 0, out = 0;
+    std::ifstream(f) >> t >> in >> out;
+    tasks += t, taskBytes += in, resultBytes += out;
+  }
+  fakes.stop();
+  srv.reset();
+  std::filesystem::remove_all(store);
+  double wall = 0, own = 0;
+  for (size_t i = 0; i < stepSeconds.size(); ++i) wall += stepSeconds[i], own += ownSeconds[i];
+  std::cerr << "fake workers: " << n << " workers, " << a.steps << " steps of " << a.fakeSeconds << " s simulated compute: server CPU "
+            << cpu << " s over " << wall << " s of steps; resident " << rssStart << " -> " << rssAfterFirst << " -> " << rssEnd << " MiB\n";
+  BenchReport rep("service_fake_workers");
+  rep.number("fake_workers", n);
+  rep.number("server_cpu_fraction", cpu / std::max(wall, 1e-9));
+  rep.number("service_time_fraction", own / std::max(wall, 1e-9));
+  rep.number("seconds_per_step", wall / std::max<double>(1, double(stepSeconds.size())), "s");
+  rep.number("server_cpu_ms_per_step", 1e3 * cpu / std::max<double>(1, double(stepSeconds.size())), "ms");
+  rep.number("server_rss_mb_after_first_step", rssAfterFirst, "MiB");
+  rep.number("server_rss_mb_end", rssEnd, "MiB");
+  rep.number("task_bytes_per_step", double(taskBytes) / double(std::max<uint64_t>(1, tasks)) * n, "B");
+  rep.number("result_bytes_per_step", double(resultBytes) / double(std::max<uint64_t>(1, tasks)) * n, "B");
+  rep.print(a.json);
+}
+
 void run(const BenchServiceArgs& a) {
+  if (a.fakeWorkers > 0) return runFake(a);
   spdlog::set_level(spdlog::level::err);
   int cores = int(std::max(1u, std::thread::hardware_concurrency()));
   // Overhead: cornell's built-in job, short targets (they are not timed).
@@ -178,6 +275,11 @@ void addBenchServiceCommand(CLI::App& bench, int& exitCode) {
   c->add_option("--steps", a->steps, "steps per timed job")->capture_default_str()->check(CLI::Range(3, 10000));
   c->add_option("--repeats", a->repeats, "interleaved repetitions (best of)")->capture_default_str()->check(CLI::Range(1, 100));
   c->add_flag("--json", a->json, "print the figures as JSON");
+  c->add_option("--fake-workers", a->fakeWorkers,
+                "instead: the server alone with N workers that render nothing (canned answers of the job's size after "
+                "--fake-seconds): its CPU time per step (target <= 0.05 of the step), memory and message sizes")
+      ->check(CLI::Range(1, 256));
+  c->add_option("--fake-seconds", a->fakeSeconds, "simulated compute per task of a fake worker")->capture_default_str()->check(CLI::PositiveNumber);
   c->callback([a, &exitCode] {
     run(*a);
     exitCode = 0;

@@ -12,6 +12,7 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode);
 void addOptimizeCommands(CLI::App& app, int& exitCode);
 void addServiceCommands(CLI::App& app, int& exitCode);  // run, submit, watch, status, list, cancel, fetch, plan
 void addBenchServiceCommand(CLI::App& bench, int& exitCode);
+void addBenchFakeWorkerCommand(CLI::App& bench, int& exitCode);
 void addBenchPixelCommand(CLI::App& bench, int& exitCode);
 void addBenchVarianceCommand(CLI::App& bench, int& exitCode);
 void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite

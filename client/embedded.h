@@ -29,15 +29,32 @@ struct LocalWorkers {
   void start(int n, int threads, int port, const std::filesystem::path& logDir) {
     std::string exe = (selfDir() / "invr-worker").string();
     if (!std::filesystem::exists(exe)) throw ExitError(exit_code::kInternal, "cannot find invr-worker next to invr (" + exe + ")");
+    for (int i = 0; i < n; ++i)
+      spawnLogged({exe, "--server", "127.0.0.1:" + std::to_string(port), "--threads", std::to_string(threads), "--parent-pid",
+                   std::to_string(getpid()), "--name", "local-" + std::to_string(i + 1)},
+                  logDir / ("worker-" + std::to_string(i + 1) + ".log"));
+  }
+  // `invr bench fake-worker` processes (canned answers, no rendering) for `invr bench service
+  // --fake-workers`; each writes its message byte counts to logDir/fake-<i>.stats when it ends.
+  void startFake(int n, int port, double seconds, const std::filesystem::path& logDir) {
+    std::string exe = (selfDir() / "invr").string();
     for (int i = 0; i < n; ++i) {
-      std::vector<std::string> args = {exe, "--server", "127.0.0.1:" + std::to_string(port), "--threads", std::to_string(threads),
-                                       "--parent-pid", std::to_string(getpid()), "--name", "local-" + std::to_string(i + 1)};
+      std::string id = std::to_string(i + 1);
+      spawnLogged({exe, "bench", "fake-worker", "--server", "127.0.0.1:" + std::to_string(port), "--seconds", std::to_string(seconds),
+                   "--name", "fake-" + id, "--stats-file", (logDir / ("fake-" + id + ".stats")).string(), "--parent-pid",
+                   std::to_string(getpid())},
+                  logDir / ("fake-" + id + ".log"));
+    }
+  }
+  void spawnLogged(std::vector<std::string> args, const std::filesystem::path& logFile) {
+    const std::string exe = args[0];
+    {
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(a.data());
       argv.push_back(nullptr);
       posix_spawn_file_actions_t fa;
       posix_spawn_file_actions_init(&fa);
-      std::string log = (logDir / ("worker-" + std::to_string(i + 1) + ".log")).string();
+      std::string log = logFile.string();
       posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       posix_spawn_file_actions_adddup2(&fa, 1, 2);
       // The child must see SIGINT/SIGTERM (this process blocks SIGINT for its own watcher thread).
