@@ -596,32 +596,10 @@ TEST(Service, HealthAndReflectionAreServed) {
   TempDir tmp;
   Cluster c(tmp.path);
   c.startServer();
-  auto ch = wire::channel(c.address());
-  grpc::GenericStub generic(ch);
-  // grpc.health.v1.Health/Check with an empty request: SERVING is field 1 = 1.
-  grpc::ClientContext ctx;
-  grpc::ByteBuffer resp;
-  grpc::Slice empty("", 0);
-  grpc::ByteBuffer req(&empty, 1);
-  std::mutex m;
-  std::condition_variable cv;
-  bool done = false;
-  grpc::Status st;
-  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &req, &resp, [&](grpc::Status s) {
-    std::lock_guard<std::mutex> lk(m);
-    st = s;
-    done = true;
-    cv.notify_all();
-  });
-  std::unique_lock<std::mutex> lk(m);
-  cv.wait_for(lk, 10s, [&] { return done; });
-  ASSERT_TRUE(done);
+  auto [st, bytes] = healthCheck(c.address());
   EXPECT_TRUE(st.ok()) << st.error_message();
-  std::vector<grpc::Slice> slices;
-  ASSERT_TRUE(resp.Dump(&slices).ok());
-  std::string bytes;
-  for (auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
   EXPECT_EQ(bytes, std::string("\x08\x01", 2));
+  auto ch = wire::channel(c.address());
 
   // Server reflection lists both services.
   auto refl = grpc::reflection::v1alpha::ServerReflection::NewStub(ch);
