@@ -38,7 +38,7 @@ void Scheduler::freeWorkerLocked(Worker& w, uint64_t task) {
   }
 }
 
-void Scheduler::onMessage(WorkerLink* link, const v1::WorkerMessage& m) {
+void Scheduler::onMessage(WorkerLink* link, v1::WorkerMessage& m) {
   std::lock_guard<std::mutex> lk(mu_);
   Worker* w = byLinkLocked(link);
   if (m.has_hello()) {
@@ -99,7 +99,7 @@ void Scheduler::onMessage(WorkerLink* link, const v1::WorkerMessage& m) {
     ResultShape shape = job != jobs_.end() ? job->second.info.shape : ResultShape{};
     std::string bad = checkTaskResult(l.task, m.result(), shape);
     if (bad.empty()) {
-      l.result = m.result();
+      l.result.Swap(m.mutable_result());
     } else {  // the task fails (and is retried elsewhere); nothing of the result is used
       spdlog::warn("worker {} ({}): malformed result for task {}: {}", w->id, w->name, l.taskId, bad);
       l.result = v1::TaskResult();

@@ -81,7 +81,8 @@ class Scheduler {
   explicit Scheduler(SchedulerOptions options);
 
   // ---- workers (worker service)
-  void onMessage(WorkerLink* link, const invr::v1::WorkerMessage& m);
+  // A result is moved out of `m` (it may hold a θ-sized gradient).
+  void onMessage(WorkerLink* link, invr::v1::WorkerMessage& m);
   void onGone(WorkerLink* link);
   std::vector<invr::v1::WorkerStatus> workers() const;
   size_t connectedWorkers() const;
