@@ -92,7 +92,10 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   const std::string name = invrParameterName(scene, givenName);
   auto parts = split(name);
   if (!parts.empty() && parts[0] == "sampling") return addSampling(scene, givenName, parts, o);
-  if (parts.size() != 3) return fail("expected materials/<name>/albedo|roughness, lights/<name>/intensity or sampling/...");
+  if (!parts.empty() && (parts[0] == "shapes" || parts[0] == "groups")) return addShape(scene, givenName, parts, o);
+  if (parts.size() != 3)
+    return fail("expected materials/<name>/albedo|roughness, lights/<name>/intensity, shapes/<name>/translation|rotation|scale, "
+                "groups/<name>/translation|rotation|scale or sampling/...");
   ParameterSlot slot;
   slot.name = givenName;
   if (parts[0] == "materials") {
@@ -134,7 +137,7 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
     slot.lower = kPositiveFloor;
     slot.upper = std::numeric_limits<float>::infinity();
   } else {
-    return fail("unknown parameter group '" + parts[0] + "' (use materials, lights or sampling)");
+    return fail("unknown parameter group '" + parts[0] + "' (use materials, lights, shapes, groups or sampling)");
   }
   slot.size = uint32_t(slot.channels * (slot.width > 0 ? slot.width * slot.height : 1));
   applyOptions(slot, o);
@@ -222,6 +225,82 @@ const ParameterSlot& ParameterRegistry::addSampling(const Scene& scene, const st
   return slots_.back();
 }
 
+const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
+                                                 const ParameterOptions& o) {
+  auto fail = [&](const std::string& why) -> const ParameterSlot& { throw InputError("parameter '" + givenName + "': " + why); };
+  const bool isGroup = parts[0] == "groups";
+  const std::string what = isGroup ? "group" : "shape";
+  if (parts.size() != 3) return fail("expected " + parts[0] + "/<name>/translation, rotation or scale");
+  ParameterSlot slot;
+  slot.name = givenName;
+  std::vector<uint32_t> meshes;
+  if (isGroup) {
+    for (size_t g = 0; g < scene.groups.size(); ++g)
+      if (scene.groups[g].name == parts[1]) slot.group = int(g);
+    if (slot.group < 0) return fail("no group named '" + parts[1] + "' (scene.groups)");
+    meshes = scene.groups[size_t(slot.group)].meshes;
+  } else {
+    for (size_t m = 0; m < scene.meshNames.size(); ++m)
+      if (scene.meshNames[m] == parts[1]) slot.shape = int(m);
+    if (slot.shape < 0) return fail("no shape named '" + parts[1] + "'");
+    meshes = {uint32_t(slot.shape)};
+  }
+  for (uint32_t m : meshes)
+    if (scene.meshLight[m] >= 0)
+      return fail("shape '" + scene.meshNames[m] + "' emits light ('" + scene.lights[size_t(scene.meshLight[m])].name +
+                  "'): moving emitters is not supported yet");
+  int firstField = 0;
+  if (parts[2] == "translation") {
+    slot.kind = ParamKind::ShapeTranslation;
+    slot.channels = 3;
+    slot.lower = -std::numeric_limits<float>::infinity();
+    slot.upper = std::numeric_limits<float>::infinity();
+    slot.learningRate = 0.01f;
+  } else if (parts[2] == "rotation") {
+    slot.kind = ParamKind::ShapeRotation;
+    slot.channels = 3;
+    slot.lower = -360.f;
+    slot.upper = 360.f;
+    slot.learningRate = 0.5f;  // degrees
+    firstField = 3;
+  } else if (parts[2] == "scale") {
+    slot.kind = ParamKind::ShapeScale;
+    slot.channels = 1;
+    slot.lower = 0.01f;
+    slot.upper = 100.f;
+    slot.learningRate = 0.01f;
+    firstField = 6;
+  } else {
+    return fail("unknown " + what + " property '" + parts[2] + "' (use translation, rotation or scale)");
+  }
+  for (const auto& other : slots_)
+    if (other.kind == slot.kind && other.shape == slot.shape && other.group == slot.group)
+      return fail("the same value as parameter '" + other.name + "', listed twice");
+  slot.size = uint32_t(slot.channels);
+  applyOptions(slot, o);
+  if (slot.kind == ParamKind::ShapeScale && !(slot.lower > 0.f)) return fail("the lower bound of a scale must be positive");
+  if (meshFields_.size() < scene.meshes.size()) meshFields_.resize(scene.meshes.size());
+  for (uint32_t m : meshes) {
+    for (int c = 0; c < slot.channels; ++c)
+      meshFields_[m].push_back({slot.offset + uint32_t(c), firstField + c + (isGroup ? RigidMotion::kComponents : 0)});
+    if (std::find(movingMeshes_.begin(), movingMeshes_.end(), m) == movingMeshes_.end()) movingMeshes_.push_back(m);
+  }
+  std::sort(movingMeshes_.begin(), movingMeshes_.end());
+  size_ += slot.size;
+  slots_.push_back(slot);
+  return slots_.back();
+}
+
+void ParameterRegistry::addPointGradient(const Scene& scene, uint32_t mesh, Vec3 p, Vec3 dLdp, PathGradient& grad) const {
+  if (!moves(mesh)) return;
+  for (const auto& f : meshFields_[mesh]) grad.add(f.index, dot(dLdp, scene.motion.pointVelocity(mesh, f.field, p)));
+}
+
+void ParameterRegistry::addNormalGradient(const Scene& scene, uint32_t mesh, Vec3 n, Vec3 dLdn, PathGradient& grad) const {
+  if (!moves(mesh)) return;
+  for (const auto& f : meshFields_[mesh]) grad.add(f.index, dot(dLdn, scene.motion.normalVelocity(mesh, f.field, n)));
+}
+
 const ParameterSlot* ParameterRegistry::find(const std::string& name) const {
   for (const auto& s : slots_)
     if (s.name == name) return &s;
@@ -233,6 +312,7 @@ std::vector<float> ParameterRegistry::read(const Scene& scene) const {
   for (const auto& s : slots_) {
     float* out = theta.data() + s.offset;
     if (readSampling(scene, s, out)) continue;
+    if (readShape(scene, s, out)) continue;
     if (s.kind == ParamKind::LightIntensity) {
       const Light& l = scene.lights[size_t(s.light)];
       Rgb v = (l.kind == LightKind::Point || l.kind == LightKind::Spot) ? l.intensity : l.radiance;
@@ -272,6 +352,15 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
         continue;
       }
       case ParamKind::Survival: scene.sampling.survival.assign(in, in + s.size); continue;
+      case ParamKind::ShapeTranslation:
+      case ParamKind::ShapeRotation:
+      case ParamKind::ShapeScale: {
+        RigidMotion& m = s.group >= 0 ? scene.motion.group(uint32_t(s.group)) : scene.motion.mesh(uint32_t(s.shape));
+        if (s.kind == ParamKind::ShapeTranslation) m.translation = Vec3(in[0], in[1], in[2]);
+        else if (s.kind == ParamKind::ShapeRotation) m.rotationDegrees = Vec3(in[0], in[1], in[2]);
+        else m.scale = in[0];
+        continue;
+      }
       default: break;
     }
     if (s.kind == ParamKind::LightIntensity) {
@@ -294,6 +383,7 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
       for (int x = 0; x < s.width; ++x)
         for (int c = 0; c < im.channels(); ++c) im.at(x, y, c) = in[(y * s.width + x) * s.channels + std::min(c, s.channels - 1)] * inv;
   }
+  if (!movingMeshes_.empty()) scene.applyShapeMotion(movingMeshes_);
   // Logits are sampling itself: always applied. Power-based selection follows emission unless
   // the caller keeps sampling fixed.
   if (selectionChanged || (emissionChanged && refreshSampling)) scene.updateLightSelection();
@@ -302,6 +392,14 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
 void ParameterRegistry::clampToBounds(std::vector<float>& theta) const {
   for (const auto& s : slots_)
     for (uint32_t i = 0; i < s.size; ++i) theta[s.offset + i] = std::clamp(theta[s.offset + i], s.lower, s.upper);
+}
+
+bool ParameterRegistry::readShape(const Scene& scene, const ParameterSlot& s, float* out) const {
+  if (s.kind != ParamKind::ShapeTranslation && s.kind != ParamKind::ShapeRotation && s.kind != ParamKind::ShapeScale) return false;
+  const RigidMotion& m = s.group >= 0 ? scene.motion.group(uint32_t(s.group)) : scene.motion.mesh(uint32_t(s.shape));
+  Vec3 v = s.kind == ParamKind::ShapeTranslation ? m.translation : s.kind == ParamKind::ShapeRotation ? m.rotationDegrees : Vec3(m.scale);
+  for (int c = 0; c < s.channels; ++c) out[c] = v[c];
+  return true;
 }
 
 bool ParameterRegistry::readSampling(const Scene& scene, const ParameterSlot& s, float* out) const {

@@ -2,6 +2,13 @@
 //   materials/<name>/albedo     diffuse or rough_plastic albedo: 3 values, or width*height*3 texels
 //   materials/<name>/roughness  GGX alpha of rough_conductor/rough_plastic: 1 value, or width*height
 //   lights/<name>/intensity     area/constant-environment radiance or point/spot intensity: 3 values
+// Shape parameters (Wang et al. 2023's shape half; core/scene/shape_motion.h): the pose relative to
+// the scene as described, about the shape's or group's pivot
+//   shapes/<name>/translation   x, y, z: 3 values, starting at 0
+//   shapes/<name>/rotation      Euler degrees about x, then y, then z: 3 values, starting at 0
+//   shapes/<name>/scale         uniform: 1 value, starting at 1
+//   groups/<name>/translation|rotation|scale   the same for a group of shapes (applied after the
+//                                               members' own)
 // Sampling parameters (Yan et al. 2024; they change a render's noise, never its mean):
 //   sampling/light_logits                 one logit per light: NEE picks lights by their softmax
 //   sampling/pixel_light_logits/<view>    per cell of a map over view <view>'s film: one logit per light
@@ -16,11 +23,12 @@
 #include <string>
 #include <vector>
 
+#include "core/diff/gradient_sink.h"
 #include "core/scene/scene.h"
 
 namespace invr {
 
-enum class ParamKind { Albedo, Roughness, LightIntensity, LightLogits, PixelLightLogits, Survival };
+enum class ParamKind { Albedo, Roughness, LightIntensity, LightLogits, PixelLightLogits, Survival, ShapeTranslation, ShapeRotation, ShapeScale };
 
 // Default lower bound of albedos and light intensities. Above zero so that optimisation never
 // changes where a light sample's target is positive: ReSTIR's normalisation (Z) counts the reused
@@ -35,6 +43,7 @@ struct ParameterSlot {
   int channels = 3;  // values per texel (3 colour, 1 scalar)
   int material = -1, light = -1;
   int view = -1;  // PixelLightLogits
+  int shape = -1, group = -1;  // shape parameters: the mesh or the group they move
   int width = 0, height = 0;  // texture resolution; 0 for constants
   float lower = 0.f, upper = 1.f;
   float learningRate = 0.01f;
@@ -74,16 +83,36 @@ class ParameterRegistry {
   }
   bool hasSamplingParameters() const { return lightLogits_ >= 0 || survival_ >= 0 || !pixelLogits_.empty(); }
 
+  // Shape parameters: the meshes they move (sorted), and per mesh the theta index of each motion
+  // component that moves it with its velocity field (ShapeMotion: 0-6 own, 7-13 group's).
+  struct ShapeField {
+    uint32_t index;
+    int field;
+  };
+  bool hasShapeParameters() const { return !movingMeshes_.empty(); }
+  const std::vector<uint32_t>& movingMeshes() const { return movingMeshes_; }
+  bool moves(uint32_t mesh) const { return mesh < meshFields_.size() && !meshFields_[mesh].empty(); }
+  const std::vector<ShapeField>& shapeFields(uint32_t mesh) const { return meshFields_[mesh]; }
+  // Adds dot(dLdp, dp/dtheta) for a point p of a moving mesh in its current pose (no-op for a
+  // mesh that does not move), and the same for a unit normal n of that mesh.
+  void addPointGradient(const Scene& scene, uint32_t mesh, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
+  void addNormalGradient(const Scene& scene, uint32_t mesh, Vec3 n, Vec3 dLdn, PathGradient& grad) const;
+
  private:
+  const ParameterSlot& addShape(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
+                                const ParameterOptions& o);
   const ParameterSlot& addSampling(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
                                    const ParameterOptions& o);
   void applyOptions(ParameterSlot& slot, const ParameterOptions& o) const;
   bool readSampling(const Scene& scene, const ParameterSlot& s, float* out) const;
+  bool readShape(const Scene& scene, const ParameterSlot& s, float* out) const;
   static int lookup(const std::vector<int>& v, int i) { return i >= 0 && size_t(i) < v.size() ? v[size_t(i)] : -1; }
   std::vector<ParameterSlot> slots_;
   std::vector<int> albedo_, roughness_, intensity_;
   std::vector<int> pixelLogits_;  // per view: index into slots_
   int lightLogits_ = -1, survival_ = -1;
+  std::vector<std::vector<ShapeField>> meshFields_;  // per mesh
+  std::vector<uint32_t> movingMeshes_;
   size_t size_ = 0;
 };
 

@@ -86,6 +86,14 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       fail(field + ".name", e.what());
     }
   }
+  if (p.params.hasShapeParameters())
+    for (int i = 0; i < o.parameters_size(); ++i) {
+      const ParameterSlot& s = p.params.slots()[size_t(i)];
+      if (s.shape >= 0 || s.group >= 0)
+        fail("parameters[" + std::to_string(i) + "].name",
+             "'" + s.name + "': shape parameters are registered, but this version cannot yet estimate their gradient in a job "
+             "(the boundary terms are being built; docs/differentiable-rendering.md says what exists)");
+    }
   p.truth = p.params.read(*p.scene);
   p.initial = p.truth;
   if (o.method() == v1::METHOD_RESTIR || o.method() == v1::METHOD_UNSPECIFIED)

@@ -41,7 +41,9 @@ void EmbreeScene::build(const std::vector<TriangleMesh>& meshes, const std::vect
     geoms_.push_back(g);
   }
   rtcSetSceneBuildQuality(scene_, anyDynamic ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_HIGH);
-  if (anyDynamic) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC);
+  // Robust traversal for moving meshes: their edges are where boundary terms sample, and rays
+  // grazing a refitted edge must not slip through it.
+  if (anyDynamic) rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
   rtcCommitScene(scene_);
   if (rtcGetDeviceError(device_) != RTC_ERROR_NONE) throw std::runtime_error("Embree: scene build failed");
 }

@@ -28,6 +28,17 @@ void Scene::finalize(bool accelerate) {
     l.triangles = Distribution1D(areas);
   }
   updateLightSelection();
+  if (meshGroup.size() != meshes.size()) meshGroup.assign(meshes.size(), -1);
+  if (meshPivot.size() != meshes.size()) {
+    meshPivot.resize(meshes.size());
+    for (size_t m = 0; m < meshes.size(); ++m) {
+      Vec3 lo(std::numeric_limits<float>::infinity()), hi = -lo;
+      for (const auto& p : meshes[m].positions) { lo = vmin(lo, p); hi = vmax(hi, p); }
+      meshPivot[m] = (lo + hi) * 0.5f;
+    }
+  }
+  motion.resize(meshes.size(), groups.size());
+  dynamicMeshes_.assign(meshes.size(), false);
   if (accelerate) accel.build(meshes);
   accelerated_ = accelerate;
 }
@@ -62,6 +73,54 @@ void Scene::updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions) {
   computeFaceNormals(mesh);
   accel.updatePositions(mesh, meshes[mesh].positions);
   ++geometryVersion_;
+}
+
+void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
+  bool rebuild = false;
+  for (uint32_t m : optimised) {
+    if (motion.moving_[m]) continue;
+    motion.moving_[m] = 1;
+    motion.restPositions_[m] = meshes[m].positions;
+    motion.restNormals_[m] = meshes[m].normals;
+    dynamicMeshes_[m] = true;
+    rebuild = true;
+  }
+  // Refit-quality geometry for the moving meshes, once; later moves only refit.
+  if (rebuild && accelerated_) accel.build(meshes, dynamicMeshes_);
+  bool moved = false;
+  for (uint32_t m : optimised) {
+    const int g = meshGroup[m];
+    const RigidMotion& own = motion.meshMotion_[m];
+    const RigidMotion group = g >= 0 ? motion.groupMotion_[size_t(g)] : RigidMotion{};
+    const Affine3d shapeMap = motionMap(own, meshPivot[m]);
+    const Affine3d groupMap = g >= 0 ? motionMap(group, groups[size_t(g)].pivot) : Affine3d{};
+    const Affine3d map = groupMap * shapeMap, inverse = map.inverse();
+    // Velocity fields D = dA/dtheta * A^-1 (shape_motion.h): the group's linear part carries the
+    // shape's own derivative; the group's derivative acts on the shape's moved points.
+    auto& v = motion.velocity_[m];
+    for (int k = 0; k < RigidMotion::kComponents; ++k) {
+      v[size_t(k)] = groupMap.linearPart() * motionDerivative(own, meshPivot[m], k) * inverse;
+      v[size_t(k + RigidMotion::kComponents)] =
+          g >= 0 ? motionDerivative(group, groups[size_t(g)].pivot, k) * groupMap.inverse() : Affine3d::zero();
+    }
+    const bool changed = own != motion.appliedMesh_[m] || (g >= 0 && group != motion.appliedGroup_[size_t(g)]);
+    if (!changed && !rebuild) continue;
+    TriangleMesh& mesh = meshes[m];
+    const auto& rest = motion.restPositions_[m];
+    std::vector<Vec3> positions(rest.size());
+    for (size_t i = 0; i < rest.size(); ++i) positions[i] = map.point(rest[i]);
+    const auto& restN = motion.restNormals_[m];
+    for (size_t i = 0; i < restN.size(); ++i) mesh.normals[i] = normalize(inverse.transposedVector(restN[i]));
+    mesh.positions = std::move(positions);
+    computeFaceNormals(m);
+    if (accelerated_) accel.updatePositions(m, mesh.positions);
+    moved = true;
+  }
+  for (uint32_t m : optimised) {
+    motion.appliedMesh_[m] = motion.meshMotion_[m];
+    if (meshGroup[m] >= 0) motion.appliedGroup_[size_t(meshGroup[m])] = motion.groupMotion_[size_t(meshGroup[m])];
+  }
+  if (moved) ++geometryVersion_;
 }
 
 bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {

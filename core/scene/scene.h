@@ -12,6 +12,7 @@
 #include "core/lights/light.h"
 #include "core/scene/camera.h"
 #include "core/scene/mesh.h"
+#include "core/scene/shape_motion.h"
 
 namespace invr {
 
@@ -62,6 +63,18 @@ class Scene {
   int width = 256, height = 256;
   SamplingState sampling;
 
+  // Shapes that move together (ShapeGroup in the scene description) and the point each shape's
+  // and group's rotation and scale act about; motion is the optimisable pose (shape_motion.h).
+  struct Group {
+    std::string name;
+    std::vector<uint32_t> meshes;
+    Vec3 pivot{0.f};
+  };
+  std::vector<Group> groups;
+  std::vector<int> meshGroup;   // per mesh: index into groups, -1 if none
+  std::vector<Vec3> meshPivot;  // per mesh
+  ShapeMotion motion;
+
   Vec3 boundsMin{0.f}, boundsMax{0.f};
   float radius = 1.f;
 
@@ -75,6 +88,12 @@ class Scene {
   // Moves a mesh's vertices (shape optimisation): refits the BVH and updates face normals.
   // Light areas are recomputed by calling finalize() when an emitter moves.
   void updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions);
+
+  // Moves the listed meshes (those with optimised motion) to the pose `motion` holds: vertices and
+  // normals from their rest pose, face normals, BVH refit (the first call rebuilds the BVH with
+  // refit-friendly flags), geometry version; and recomputes their velocity fields. Meshes whose
+  // motion did not change since the last call keep their vertices.
+  void applyShapeMotion(const std::vector<uint32_t>& optimisedMeshes);
 
   // Incremented whenever vertices move, so caches of surface positions know to re-place.
   uint64_t geometryVersion() const { return geometryVersion_; }
@@ -119,6 +138,7 @@ class Scene {
   double powerTotal_ = 0;
   std::vector<uint32_t> infiniteLights_;
   std::vector<std::vector<Vec3>> faceNormals_;
+  std::vector<bool> dynamicMeshes_;
   uint64_t geometryVersion_ = 0;
   bool accelerated_ = false;
 };

@@ -1,5 +1,6 @@
 #include "core/scene/scene_builder.h"
 
+#include <limits>
 #include <map>
 #include <set>
 
@@ -34,6 +35,12 @@ Vec3 vec(const v1::Vec3& v, const std::string& field) {
   Vec3 r(float(v.x()), float(v.y()), float(v.z()));
   if (!std::isfinite(v.x()) || !std::isfinite(v.y()) || !std::isfinite(v.z())) fail(field, "not a finite vector");
   return r;
+}
+
+Vec3 boundsCentre(const std::vector<Vec3>& points) {
+  Vec3 lo(std::numeric_limits<float>::infinity()), hi = -lo;
+  for (const auto& p : points) { lo = vmin(lo, p); hi = vmax(hi, p); }
+  return (lo + hi) * 0.5f;
 }
 
 Rgb rgb(const v1::Rgb& c, const std::string& field) {
@@ -275,6 +282,8 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
     if (s.flip_normals()) mesh.flipWinding(true);
     validateMesh(mesh, field);
     if (s.smooth_normals() && mesh.normals.empty()) computeSmoothNormals(mesh);
+    Vec3 pivot = s.has_pivot() ? vec(s.pivot(), field + ".pivot") : boundsCentre(mesh.positions);
+    scene->meshPivot.push_back(pivot);
     scene->meshes.push_back(std::move(mesh));
     scene->meshNames.push_back(s.name());
     scene->meshMaterial.push_back(mit->second);
@@ -366,6 +375,33 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
     Camera cam = Camera::lookAt(eye, target, up, float(fov));
     cam.name = c.name();
     scene->cameras.push_back(cam);
+  }
+  scene->meshGroup.assign(scene->meshes.size(), -1);
+  std::map<std::string, int> groupIndex;
+  for (int i = 0; i < spec.groups_size(); ++i) {
+    const auto& g = spec.groups(i);
+    std::string field = root + ".groups[" + std::to_string(i) + "]";
+    if (g.name().empty()) fail(field + ".name", "every group needs a name");
+    field += " (" + g.name() + ")";
+    if (!groupIndex.emplace(g.name(), i).second) fail(field + ".name", "duplicate group name");
+    if (g.shapes_size() == 0) fail(field + ".shapes", "a group needs at least one shape");
+    Scene::Group out;
+    out.name = g.name();
+    std::vector<Vec3> corners;
+    for (int k = 0; k < g.shapes_size(); ++k) {
+      const std::string sf = field + ".shapes[" + std::to_string(k) + "]";
+      auto it = shapeIndex.find(g.shapes(k));
+      if (it == shapeIndex.end()) fail(sf, "unknown shape '" + g.shapes(k) + "'");
+      int& owner = scene->meshGroup[size_t(it->second)];
+      if (owner == i) fail(sf, "shape '" + g.shapes(k) + "' is listed twice");
+      if (owner >= 0) fail(sf, "shape '" + g.shapes(k) + "' is already in group '" + spec.groups(owner).name() + "' (a shape belongs to at most one group)");
+      owner = i;
+      out.meshes.push_back(uint32_t(it->second));
+      const auto& positions = scene->meshes[size_t(it->second)].positions;
+      corners.insert(corners.end(), positions.begin(), positions.end());
+    }
+    out.pivot = g.has_pivot() ? vec(g.pivot(), field + ".pivot") : boundsCentre(corners);
+    scene->groups.push_back(std::move(out));
   }
   scene->finalize(use == SceneUse::Render);
   return scene;

@@ -1,0 +1,84 @@
+// Optimisable rigid motion of shapes (Wang et al. 2023 optimise poses and shapes): each shape, and
+// each group of shapes, has a translation, an Euler rotation in degrees (x, then y, then z) and a
+// uniform scale, both about a pivot:
+//     p  ->  pivot + scale * R(rotation) * (p - pivot) + translation.
+// A shape in a group moves by its own motion first, then by the group's. Vertices are recomputed
+// from the positions the shape had when it first moved (its rest pose), so motion never drifts.
+//
+// Derivatives are velocity fields: for motion component k, the affine map D_k with
+// dp/dtheta_k = D_k(p) for any point p on the moving surface (exact: the motion is affine in the
+// rest point, and D_k = dA/dtheta_k * A^-1). Computed in double from the parameters themselves.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/math/vec.h"
+
+namespace invr {
+
+// A 3x4 affine map in double (derivatives of motions are not motions: no unit last row implied).
+struct Affine3d {
+  double m[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
+  Vec3 point(Vec3 p) const;
+  Vec3 vector(Vec3 v) const;
+  // The transpose of the linear part applied to v.
+  Vec3 transposedVector(Vec3 v) const;
+  friend Affine3d operator*(const Affine3d& a, const Affine3d& b);  // (a * b)(p) = a(b(p))
+  Affine3d inverse() const;  // of an invertible map
+  Affine3d linearPart() const;  // the same map with no translation
+  static Affine3d zero();
+};
+
+struct RigidMotion {
+  static constexpr int kComponents = 7;  // translation x, y, z; rotation x, y, z (degrees); scale
+  Vec3 translation{0.f};
+  Vec3 rotationDegrees{0.f};
+  float scale = 1.f;
+  bool operator==(const RigidMotion& o) const {
+    return translation.x == o.translation.x && translation.y == o.translation.y && translation.z == o.translation.z &&
+           rotationDegrees.x == o.rotationDegrees.x && rotationDegrees.y == o.rotationDegrees.y &&
+           rotationDegrees.z == o.rotationDegrees.z && scale == o.scale;
+  }
+  bool operator!=(const RigidMotion& o) const { return !(*this == o); }
+};
+
+// The motion as a map, and its derivative with respect to component k (per degree for rotations).
+Affine3d motionMap(const RigidMotion& motion, Vec3 pivot);
+Affine3d motionDerivative(const RigidMotion& motion, Vec3 pivot, int component);
+
+// The motion state of a scene's meshes and groups. Owned by Scene; written by the parameter
+// registry (core/diff/parameters.h), read by the shape-derivative estimators.
+class ShapeMotion {
+ public:
+  // Velocity fields per mesh: 7 for the shape's own motion, then 7 for its group's (if any).
+  static constexpr int kFields = 2 * RigidMotion::kComponents;
+
+  void resize(size_t meshes, size_t groups);
+  RigidMotion& mesh(uint32_t m) { return meshMotion_[m]; }
+  RigidMotion& group(uint32_t g) { return groupMotion_[g]; }
+  const RigidMotion& mesh(uint32_t m) const { return meshMotion_[m]; }
+  const RigidMotion& group(uint32_t g) const { return groupMotion_[g]; }
+
+  // dp/dtheta of motion component `field` (0-6: the mesh's own, 7-13: its group's) at a point p of
+  // mesh m in its current pose. Valid after Scene::applyShapeMotion().
+  Vec3 pointVelocity(uint32_t m, int field, Vec3 p) const { return velocity_[m][size_t(field)].point(p); }
+  // d n / d theta of the same component for a unit normal n of mesh m (the normal of the moved
+  // surface: n' ∝ A^-T n, so dn = -(I - n n^T) D^T n).
+  Vec3 normalVelocity(uint32_t m, int field, Vec3 n) const {
+    Vec3 g = velocity_[m][size_t(field)].transposedVector(n);
+    return -(g - n * dot(n, g));
+  }
+  bool moving(uint32_t m) const { return m < moving_.size() && moving_[m]; }
+
+ private:
+  friend class Scene;
+  std::vector<RigidMotion> meshMotion_, groupMotion_;
+  std::vector<RigidMotion> appliedMesh_, appliedGroup_;  // what the vertices reflect
+  std::vector<std::array<Affine3d, kFields>> velocity_;
+  std::vector<std::vector<Vec3>> restPositions_, restNormals_;  // captured when a mesh first moves
+  std::vector<uint8_t> moving_;
+};
+
+}  // namespace invr
