@@ -1,0 +1,184 @@
+#include "core/diff/primary_boundary.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+
+#include "core/error.h"
+#include "core/math/sampling.h"
+
+namespace invr {
+
+namespace {
+
+// An edge clipped to the near plane (3D end points a, b with camera depths) and to the film
+// (the film-space fraction range [s0, s1] of the projected segment a -> b).
+struct FilmEdge {
+  uint32_t mesh;
+  Vec3 a, b;
+  float za, zb;
+  Vec2 fa, fb;  // film positions of a and b (unclipped to the film)
+  float s0, s1;
+  float length;  // film length of [s0, s1]
+};
+
+Vec2 toFilm(const Camera& cam, Vec3 p, int W, int H) {
+  Vec3 d = p - cam.eye;
+  float z = dot(d, cam.forward);
+  float sx = dot(d, cam.right) / z, sy = dot(d, cam.up) / z;
+  return Vec2(0.5f * (sx * float(H) / cam.tanHalfFovY + float(W)), 0.5f * float(H) * (1.f - sy / cam.tanHalfFovY));
+}
+
+// Liang-Barsky: the parameter range of fa + s (fb - fa) inside [0, W] x [0, H].
+bool clipToFilm(Vec2 fa, Vec2 fb, float W, float H, float& s0, float& s1) {
+  s0 = 0.f;
+  s1 = 1.f;
+  const float d[2] = {fb.x - fa.x, fb.y - fa.y}, lo[2] = {0.f, 0.f}, hi[2] = {W, H}, p0[2] = {fa.x, fa.y};
+  for (int k = 0; k < 2; ++k) {
+    if (d[k] == 0.f) {
+      if (p0[k] < lo[k] || p0[k] > hi[k]) return false;
+      continue;
+    }
+    float t0 = (lo[k] - p0[k]) / d[k], t1 = (hi[k] - p0[k]) / d[k];
+    if (t0 > t1) std::swap(t0, t1);
+    s0 = std::max(s0, t0);
+    s1 = std::min(s1, t1);
+  }
+  return s1 > s0;
+}
+
+// d(film x, film y)/dP for a point P in front of the camera, as two rows.
+void filmJacobian(const Camera& cam, Vec3 p, int H, Vec3& dx, Vec3& dy) {
+  Vec3 d = p - cam.eye;
+  float z = dot(d, cam.forward);
+  float k = 0.5f * float(H) / cam.tanHalfFovY;
+  Vec3 dsx = (cam.right - cam.forward * (dot(d, cam.right) / z)) / z;
+  Vec3 dsy = (cam.up - cam.forward * (dot(d, cam.up) / z)) / z;
+  dx = dsx * k;
+  dy = dsy * -k;
+}
+
+}  // namespace
+
+PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
+    : scene_(scene), params_(params), topology_(topology) {}
+
+BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int view, const Image& adjoint, int samples, uint64_t stream,
+                                       uint64_t step, GradientScratchPool& scratchPool, std::vector<double>& gradient,
+                                       const std::atomic<bool>* cancel) const {
+  const Camera& cam = scene_.cameras[size_t(view)];
+  const int W = scene_.width, H = scene_.height;
+  const float zNear = 1e-4f * scene_.radius;
+  BoundaryPassStats st;
+  // Candidates in the current pose: silhouettes from the eye and creases, clipped.
+  std::vector<FilmEdge> edges;
+  std::vector<float> lengths;
+  for (uint32_t m : params_.movingMeshes()) {
+    const TriangleMesh& mesh = scene_.meshes[m];
+    std::vector<Vec3> normals(mesh.triangleCount());
+    for (uint32_t f = 0; f < normals.size(); ++f) normals[f] = scene_.faceNormal(m, f);
+    for (const MeshEdge& e : topology_[m].edges()) {
+      if (!e.crease && !EdgeTopology::silhouetteFrom(e, mesh, normals, cam.eye)) continue;
+      FilmEdge fe;
+      fe.mesh = m;
+      fe.a = mesh.positions[e.v0];
+      fe.b = mesh.positions[e.v1];
+      fe.za = dot(fe.a - cam.eye, cam.forward);
+      fe.zb = dot(fe.b - cam.eye, cam.forward);
+      if (fe.za < zNear && fe.zb < zNear) continue;
+      if (fe.za < zNear || fe.zb < zNear) {  // clip at the near plane
+        float t = (zNear - fe.za) / (fe.zb - fe.za);
+        Vec3 c = fe.a + (fe.b - fe.a) * t;
+        if (fe.za < zNear) { fe.a = c; fe.za = zNear; }
+        else { fe.b = c; fe.zb = zNear; }
+      }
+      fe.fa = toFilm(cam, fe.a, W, H);
+      fe.fb = toFilm(cam, fe.b, W, H);
+      if (!clipToFilm(fe.fa, fe.fb, float(W), float(H), fe.s0, fe.s1)) continue;
+      const Vec2 span = fe.fb - fe.fa;
+      fe.length = std::sqrt(span.x * span.x + span.y * span.y) * (fe.s1 - fe.s0);
+      if (!(fe.length > 0.f)) continue;
+      edges.push_back(fe);
+      lengths.push_back(fe.length);
+    }
+  }
+  st.candidateEdges = edges.size();
+  for (float l : lengths) st.filmLength += double(l);
+  if (edges.empty() || samples <= 0) return st;
+  const Distribution1D pick(lengths);
+  const float total = float(st.filmLength);
+
+  constexpr int kChunk = 64;
+  const int chunks = (samples + kChunk - 1) / kChunk;
+  std::vector<TileGradient> tiles(static_cast<size_t>(chunks));
+  std::mutex mergeMutex;
+  std::atomic<bool> cancelled{false};
+  tbb::parallel_for(tbb::blocked_range<int>(0, chunks), [&](const tbb::blocked_range<int>& range) {
+    SampleCounters counters;
+    uint64_t dropped = 0;
+    PathGradient grad;
+    GradientScratch& scratch = scratchPool.local();
+    for (int chunk = range.begin(); chunk < range.end(); ++chunk) {
+      if (cancelled.load(std::memory_order_relaxed) || (cancel && cancel->load(std::memory_order_relaxed))) {
+        cancelled = true;
+        break;
+      }
+      for (int i = chunk * kChunk; i < std::min(samples, (chunk + 1) * kChunk); ++i) {
+        Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+        float u = 0.f;
+        const FilmEdge& e = edges[pick.sample(sampler.next1D(), &u)];
+        // A point uniform in film length on the clipped part, and the edge point under it
+        // (perspective-correct: 1/z and t/z are linear on the film).
+        const float s = e.s0 + (e.s1 - e.s0) * u;
+        const Vec2 x = e.fa + (e.fb - e.fa) * s;
+        const float t = s * e.za / ((1.f - s) * e.zb + s * e.za);
+        const Vec3 P = e.a + (e.b - e.a) * t;
+        Vec2 dir = e.fb - e.fa;
+        dir = dir * (1.f / std::sqrt(dir.x * dir.x + dir.y * dir.y));
+        const Vec2 n(-dir.y, dir.x);
+        const int px = std::clamp(int(x.x), 0, W - 1), py = std::clamp(int(x.y), 0, H - 1);
+        const uint64_t pixel = uint64_t(py) * uint64_t(W) + uint64_t(px);
+        Rgb side[2];
+        for (int k = 0; k < 2; ++k) {
+          const float sign = k == 0 ? -1.f : 1.f;
+          CameraSampleInput in;
+          in.x = px;
+          in.y = py;
+          in.pixel = pixel;
+          in.slot = 0;
+          in.o = cam.eye;
+          in.d = cam.direction(x.x + sign * kSideOffsetPixels * n.x, x.y + sign * kSideOffsetPixels * n.y, W, H);
+          Sampler sideSampler = sampler.fork(uint64_t(k));
+          side[k] = estimator.sample(in, sideSampler, counters, Rgb(0.f), nullptr, nullptr);
+        }
+        const Rgb adj = adjoint.rgb(px, py);
+        const Rgb diff = side[0] - side[1];  // L(x - eps n) - L(x + eps n)
+        const float w = (adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * total / float(samples);
+        if (w == 0.f) continue;
+        Vec3 dx, dy;
+        filmJacobian(cam, P, H, dx, dy);
+        const Vec3 dLdP = (dx * n.x + dy * n.y) * w;  // w * n . (dfilm/dP)
+        params_.addPointGradient(scene_, e.mesh, P, dLdP, grad);
+        if (!grad.finiteFrom(0)) {
+          ++dropped;
+          grad.clear();
+          continue;
+        }
+        scratch.commit(grad);
+      }
+      scratch.flush(tiles[size_t(chunk)]);
+    }
+    std::lock_guard lock(mergeMutex);
+    st.rays += counters.rays;
+    st.dropped += dropped;
+  });
+  if (cancelled) throw EvaluationCancelled{};
+  for (auto& t : tiles) t.reduceInto(gradient);
+  st.samples = uint64_t(samples);
+  return st;
+}
+
+}  // namespace invr
