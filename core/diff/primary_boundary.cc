@@ -7,6 +7,7 @@
 #include <cmath>
 #include <mutex>
 
+#include "core/diff/film_projection.h"
 #include "core/error.h"
 #include "core/math/sampling.h"
 
@@ -25,13 +26,6 @@ struct FilmEdge {
   float length;  // film length of [s0, s1]
 };
 
-Vec2 toFilm(const Camera& cam, Vec3 p, int W, int H) {
-  Vec3 d = p - cam.eye;
-  float z = dot(d, cam.forward);
-  float sx = dot(d, cam.right) / z, sy = dot(d, cam.up) / z;
-  return Vec2(0.5f * (sx * float(H) / cam.tanHalfFovY + float(W)), 0.5f * float(H) * (1.f - sy / cam.tanHalfFovY));
-}
-
 // Liang-Barsky: the parameter range of fa + s (fb - fa) inside [0, W] x [0, H].
 bool clipToFilm(Vec2 fa, Vec2 fb, float W, float H, float& s0, float& s1) {
   s0 = 0.f;
@@ -48,17 +42,6 @@ bool clipToFilm(Vec2 fa, Vec2 fb, float W, float H, float& s0, float& s1) {
     s1 = std::min(s1, t1);
   }
   return s1 > s0;
-}
-
-// d(film x, film y)/dP for a point P in front of the camera, as two rows.
-void filmJacobian(const Camera& cam, Vec3 p, int H, Vec3& dx, Vec3& dy) {
-  Vec3 d = p - cam.eye;
-  float z = dot(d, cam.forward);
-  float k = 0.5f * float(H) / cam.tanHalfFovY;
-  Vec3 dsx = (cam.right - cam.forward * (dot(d, cam.right) / z)) / z;
-  Vec3 dsy = (cam.up - cam.forward * (dot(d, cam.up) / z)) / z;
-  dx = dsx * k;
-  dy = dsy * -k;
 }
 
 }  // namespace
@@ -95,8 +78,8 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
         if (fe.za < zNear) { fe.a = c; fe.za = zNear; }
         else { fe.b = c; fe.zb = zNear; }
       }
-      fe.fa = toFilm(cam, fe.a, W, H);
-      fe.fb = toFilm(cam, fe.b, W, H);
+      fe.fa = filmPosition(cam, fe.a, W, H);
+      fe.fb = filmPosition(cam, fe.b, W, H);
       if (!clipToFilm(fe.fa, fe.fb, float(W), float(H), fe.s0, fe.s1)) continue;
       const Vec2 span = fe.fb - fe.fa;
       fe.length = std::sqrt(span.x * span.x + span.y * span.y) * (fe.s1 - fe.s0);
