@@ -52,6 +52,13 @@ TEST(Problem, JobMistakesNameTheField) {
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial": 0.3}]})"), "");
 }
 
+TEST(Problem, ShapeParametersAreRefusedUntilTheEngineRunsBoundaryTerms) {
+  // Registered (the name resolves) but refused in a job, saying why; a bad shape name names it.
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "cannot yet estimate their gradient");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "parameters[0].name");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/nope/translation"}]})"), "no shape named 'nope'");
+}
+
 TEST(Problem, VarianceJobsNameTheirMistakes) {
   const std::string albedo = R"("parameters": [{"name": "materials/red/albedo"}])";
   EXPECT_MENTIONS(errorOf("{" + albedo + R"(, "variance": {}})"), "optimization.variance: needs method METHOD_PT");
