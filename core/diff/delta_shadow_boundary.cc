@@ -1,14 +1,9 @@
 #include "core/diff/delta_shadow_boundary.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
-#include <mutex>
 
 #include "core/diff/film_projection.h"
-#include "core/error.h"
 #include "core/math/sampling.h"
 
 namespace invr {
@@ -62,101 +57,58 @@ BoundaryPassStats DeltaShadowBoundary::run(const InteriorEstimator& estimator, i
   if (edges.empty() || samples <= 0) return st;
   const Distribution1D pick(weights);
 
-  constexpr int kChunk = 64;
-  const int chunks = (samples + kChunk - 1) / kChunk;
-  std::vector<TileGradient> tiles(static_cast<size_t>(chunks));
-  std::mutex mergeMutex;
-  std::atomic<bool> cancelled{false};
-  tbb::parallel_for(tbb::blocked_range<int>(0, chunks), [&](const tbb::blocked_range<int>& range) {
-    SampleCounters counters;
-    uint64_t dropped = 0;
-    PathGradient grad;
-    GradientScratch& scratch = scratchPool.local();
-    for (int chunk = range.begin(); chunk < range.end(); ++chunk) {
-      if (cancelled.load(std::memory_order_relaxed) || (cancel && cancel->load(std::memory_order_relaxed))) {
-        cancelled = true;
-        break;
-      }
-      for (int i = chunk * kChunk; i < std::min(samples, (chunk + 1) * kChunk); ++i) {
-        Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
-        float t = 0.f;
-        const size_t k = pick.sample(sampler.next1D(), &t);
-        const ShadowEdge& se = edges[k];
-        // pdf of (edge, t): the edge's share of the total length (t is uniform on [0, 1]).
-        const double pdf = double(pick.pmf(k));
-        const bool occluderMoves = params_.moves(se.mesh);
-        const Vec3 e = se.a + (se.b - se.a) * t;
-        const Vec3 toE = e - se.light;
-        const float distE = length(toE);
-        if (!(distE > 0.f)) continue;
-        const Vec3 dir = toE / distE;
-        // The shadow point: the first surface beyond the edge (started just past it so the
-        // grazing faces of the edge itself are not hit).
-        SurfaceHit hit;
-        const Vec3 start = e + dir * (1e-4f * (1.f + maxComponent(vmax(e, -e))));
-        if (!scene_.intersect(start, dir, hit)) continue;
-        if (!occluderMoves && !params_.moves(hit.mesh)) continue;  // nothing here moves
-        const Vec3 y = hit.p, nr = hit.ng;
-        const float denom = dot(nr, toE);
-        if (std::abs(denom) < 1e-8f * distE) continue;  // grazing the receiver: measure zero
-        if (!(dot(y - cam.eye, cam.forward) > 0.f)) continue;
-        const Vec2 x = filmPosition(cam, y, W, H);
-        if (!(x.x >= 0.f && x.y >= 0.f && x.x < float(W) && x.y < float(H))) continue;
-        const float s = length(y - se.light) / distE;
-        // Film tangent of the curve: dy/dt = ds/dt (e - l) + s (b - a), ray-plane at y.
-        const Vec3 de = se.b - se.a;
-        const Vec3 dydt = toE * (-s * dot(nr, de) / denom) + de * s;
-        Vec3 jx, jy;
-        filmJacobian(cam, y, H, jx, jy);
-        const Vec2 dxdt(dot(jx, dydt), dot(jy, dydt));
-        const float speed = std::sqrt(dxdt.x * dxdt.x + dxdt.y * dxdt.y);
-        if (!(speed > 0.f)) continue;
-        const Vec2 n(-dxdt.y / speed, dxdt.x / speed);
-        const int px = std::clamp(int(x.x), 0, W - 1), py = std::clamp(int(x.y), 0, H - 1);
-        const uint64_t pixel = uint64_t(py) * uint64_t(W) + uint64_t(px);
-        // The sides must straddle the border the renderer draws, which its shadow rays' origin
-        // offset (offsetOrigin) displaces by a few offsets: step that far, at least, on the film.
-        const float offsetWorld = 8e-4f * (1.f + maxComponent(vmax(y, -y)));
-        const float eps = std::max(PrimaryBoundary::kSideOffsetPixels, offsetWorld * std::max(length(jx), length(jy)));
-        Rgb side[2];
-        for (int sideIndex = 0; sideIndex < 2; ++sideIndex) {
-          const float sign = sideIndex == 0 ? -1.f : 1.f;
-          CameraSampleInput in;
-          in.x = px;
-          in.y = py;
-          in.pixel = pixel;
-          in.o = cam.eye;
-          in.d = cam.direction(x.x + sign * eps * n.x, x.y + sign * eps * n.y, W, H);
-          Sampler sideSampler = sampler.fork(uint64_t(sideIndex));
-          side[sideIndex] = estimator.sample(in, sideSampler, counters, Rgb(0.f), nullptr, nullptr);
-        }
-        const Rgb adj = adjoint.rgb(px, py), diff = side[0] - side[1];
-        const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(speed) / (pdf * double(samples));
-        if (w == 0.0) continue;
-        // dLoss/dtheta_k = w (n . J dy/dtheta_k), dy/dtheta_k = ds_k (e - l) + s de_k with
-        // ds_k = (nr . u_k - s nr . de_k) / (nr . (e - l)); u_k, de_k the receiver's and the
-        // occluder's velocities. With g = w J^T n: c = g . (e - l) / (nr . (e - l)),
-        //   occluder: (s (g - c nr)) . de_k,   receiver: (c nr) . u_k.
-        const Vec3 g = (jx * n.x + jy * n.y) * float(w);
-        const float c = dot(g, toE) / denom;
-        params_.addPointGradient(scene_, se.mesh, e, (g - nr * c) * s, grad);
-        params_.addPointGradient(scene_, hit.mesh, y, nr * c, grad);
-        if (!grad.finiteFrom(0)) {
-          ++dropped;
-          grad.clear();
-          continue;
-        }
-        scratch.commit(grad);
-      }
-      scratch.flush(tiles[size_t(chunk)]);
-    }
-    std::lock_guard lock(mergeMutex);
-    st.rays += counters.rays;
-    st.dropped += dropped;
+  runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
+    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+    float t = 0.f;
+    const size_t k = pick.sample(sampler.next1D(), &t);
+    const ShadowEdge& se = edges[k];
+    // pdf of (edge, t): the edge's probability (t is uniform on [0, 1]).
+    const double pdf = double(pick.pmf(k));
+    const bool occluderMoves = params_.moves(se.mesh);
+    const Vec3 e = se.a + (se.b - se.a) * t;
+    const Vec3 toE = e - se.light;
+    const float distE = length(toE);
+    if (!(distE > 0.f)) return;
+    const Vec3 dir = toE / distE;
+    // The shadow point: the first surface beyond the edge (started just past it so the
+    // grazing faces of the edge itself are not hit).
+    SurfaceHit hit;
+    const Vec3 start = e + dir * (1e-4f * (1.f + maxComponent(vmax(e, -e))));
+    if (!scene_.intersect(start, dir, hit)) return;
+    if (!occluderMoves && !params_.moves(hit.mesh)) return;  // nothing here moves
+    const Vec3 y = hit.p, nr = hit.ng;
+    const float denom = dot(nr, toE);
+    if (std::abs(denom) < 1e-8f * distE) return;  // grazing the receiver: measure zero
+    if (!(dot(y - cam.eye, cam.forward) > 0.f)) return;
+    const Vec2 x = filmPosition(cam, y, W, H);
+    if (!(x.x >= 0.f && x.y >= 0.f && x.x < float(W) && x.y < float(H))) return;
+    const float s = length(y - se.light) / distE;
+    // Film tangent of the curve: dy/dt = ds/dt (e - l) + s (b - a), ray-plane at y.
+    const Vec3 de = se.b - se.a;
+    const Vec3 dydt = toE * (-s * dot(nr, de) / denom) + de * s;
+    Vec3 jx, jy;
+    filmJacobian(cam, y, H, jx, jy);
+    const Vec2 dxdt(dot(jx, dydt), dot(jy, dydt));
+    const float speed = std::sqrt(dxdt.x * dxdt.x + dxdt.y * dxdt.y);
+    if (!(speed > 0.f)) return;
+    const Vec2 n(-dxdt.y / speed, dxdt.x / speed);
+    // The sides must straddle the border the renderer draws, which its shadow rays' origin
+    // offset (offsetOrigin) displaces by a few offsets: step that far, at least, on the film.
+    const float offsetWorld = 8e-4f * (1.f + maxComponent(vmax(y, -y)));
+    const float eps = std::max(PrimaryBoundary::kSideOffsetPixels, offsetWorld * std::max(length(jx), length(jy)));
+    const FilmCrossing crossing = radianceJump(scene_, estimator, cam, x, n, eps, sampler, counters);
+    const Rgb adj = adjoint.rgb(crossing.px, crossing.py), diff = crossing.jump;
+    const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(speed) / (pdf * double(samples));
+    if (w == 0.0) return;
+    // dLoss/dtheta_k = w (n . J dy/dtheta_k), dy/dtheta_k = ds_k (e - l) + s de_k with
+    // ds_k = (nr . u_k - s nr . de_k) / (nr . (e - l)); u_k, de_k the receiver's and the
+    // occluder's velocities. With g = w J^T n: c = g . (e - l) / (nr . (e - l)),
+    //   occluder: (s (g - c nr)) . de_k,   receiver: (c nr) . u_k.
+    const Vec3 g = (jx * n.x + jy * n.y) * float(w);
+    const float c = dot(g, toE) / denom;
+    params_.addPointGradient(scene_, se.mesh, e, (g - nr * c) * s, grad);
+    params_.addPointGradient(scene_, hit.mesh, y, nr * c, grad);
   });
-  if (cancelled) throw EvaluationCancelled{};
-  for (auto& tile : tiles) tile.reduceInto(gradient);
-  st.samples = uint64_t(samples);
   return st;
 }
 

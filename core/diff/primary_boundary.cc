@@ -1,14 +1,9 @@
 #include "core/diff/primary_boundary.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
-#include <mutex>
 
 #include "core/diff/film_projection.h"
-#include "core/error.h"
 #include "core/math/sampling.h"
 
 namespace invr {
@@ -94,73 +89,27 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
   const Distribution1D pick(lengths);
   const float total = float(st.filmLength);
 
-  constexpr int kChunk = 64;
-  const int chunks = (samples + kChunk - 1) / kChunk;
-  std::vector<TileGradient> tiles(static_cast<size_t>(chunks));
-  std::mutex mergeMutex;
-  std::atomic<bool> cancelled{false};
-  tbb::parallel_for(tbb::blocked_range<int>(0, chunks), [&](const tbb::blocked_range<int>& range) {
-    SampleCounters counters;
-    uint64_t dropped = 0;
-    PathGradient grad;
-    GradientScratch& scratch = scratchPool.local();
-    for (int chunk = range.begin(); chunk < range.end(); ++chunk) {
-      if (cancelled.load(std::memory_order_relaxed) || (cancel && cancel->load(std::memory_order_relaxed))) {
-        cancelled = true;
-        break;
-      }
-      for (int i = chunk * kChunk; i < std::min(samples, (chunk + 1) * kChunk); ++i) {
-        Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
-        float u = 0.f;
-        const FilmEdge& e = edges[pick.sample(sampler.next1D(), &u)];
-        // A point uniform in film length on the clipped part, and the edge point under it
-        // (perspective-correct: 1/z and t/z are linear on the film).
-        const float s = e.s0 + (e.s1 - e.s0) * u;
-        const Vec2 x = e.fa + (e.fb - e.fa) * s;
-        const float t = s * e.za / ((1.f - s) * e.zb + s * e.za);
-        const Vec3 P = e.a + (e.b - e.a) * t;
-        Vec2 dir = e.fb - e.fa;
-        dir = dir * (1.f / std::sqrt(dir.x * dir.x + dir.y * dir.y));
-        const Vec2 n(-dir.y, dir.x);
-        const int px = std::clamp(int(x.x), 0, W - 1), py = std::clamp(int(x.y), 0, H - 1);
-        const uint64_t pixel = uint64_t(py) * uint64_t(W) + uint64_t(px);
-        Rgb side[2];
-        for (int k = 0; k < 2; ++k) {
-          const float sign = k == 0 ? -1.f : 1.f;
-          CameraSampleInput in;
-          in.x = px;
-          in.y = py;
-          in.pixel = pixel;
-          in.slot = 0;
-          in.o = cam.eye;
-          in.d = cam.direction(x.x + sign * kSideOffsetPixels * n.x, x.y + sign * kSideOffsetPixels * n.y, W, H);
-          Sampler sideSampler = sampler.fork(uint64_t(k));
-          side[k] = estimator.sample(in, sideSampler, counters, Rgb(0.f), nullptr, nullptr);
-        }
-        const Rgb adj = adjoint.rgb(px, py);
-        const Rgb diff = side[0] - side[1];  // L(x - eps n) - L(x + eps n)
-        const float w = (adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * total / float(samples);
-        if (w == 0.f) continue;
-        Vec3 dx, dy;
-        filmJacobian(cam, P, H, dx, dy);
-        const Vec3 dLdP = (dx * n.x + dy * n.y) * w;  // w * n . (dfilm/dP)
-        params_.addPointGradient(scene_, e.mesh, P, dLdP, grad);
-        if (!grad.finiteFrom(0)) {
-          ++dropped;
-          grad.clear();
-          continue;
-        }
-        scratch.commit(grad);
-      }
-      scratch.flush(tiles[size_t(chunk)]);
-    }
-    std::lock_guard lock(mergeMutex);
-    st.rays += counters.rays;
-    st.dropped += dropped;
+  runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
+    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+    float u = 0.f;
+    const FilmEdge& e = edges[pick.sample(sampler.next1D(), &u)];
+    // A point uniform in film length on the clipped part, and the edge point under it
+    // (perspective-correct: 1/z and t/z are linear on the film).
+    const float s = e.s0 + (e.s1 - e.s0) * u;
+    const Vec2 x = e.fa + (e.fb - e.fa) * s;
+    const float t = s * e.za / ((1.f - s) * e.zb + s * e.za);
+    const Vec3 P = e.a + (e.b - e.a) * t;
+    Vec2 dir = e.fb - e.fa;
+    dir = dir * (1.f / std::sqrt(dir.x * dir.x + dir.y * dir.y));
+    const Vec2 n(-dir.y, dir.x);
+    const FilmCrossing c = radianceJump(scene_, estimator, cam, x, n, kSideOffsetPixels, sampler, counters);
+    const Rgb adj = adjoint.rgb(c.px, c.py);
+    const float w = (adj.x * c.jump.x + adj.y * c.jump.y + adj.z * c.jump.z) * total / float(samples);
+    if (w == 0.f) return;
+    Vec3 dx, dy;
+    filmJacobian(cam, P, H, dx, dy);
+    params_.addPointGradient(scene_, e.mesh, P, (dx * n.x + dy * n.y) * w, grad);  // w * n . dfilm/dP
   });
-  if (cancelled) throw EvaluationCancelled{};
-  for (auto& t : tiles) t.reduceInto(gradient);
-  st.samples = uint64_t(samples);
   return st;
 }
 

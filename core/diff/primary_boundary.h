@@ -18,19 +18,11 @@
 #include <atomic>
 #include <vector>
 
-#include "core/diff/interior_estimator.h"
-#include "core/diff/pass_driver.h"
+#include "core/diff/boundary_sampling.h"
 #include "core/geometry/edge_topology.h"
 #include "core/image/image.h"
 
 namespace invr {
-
-struct BoundaryPassStats {
-  size_t candidateEdges = 0;  // silhouette and crease edges on the film
-  double filmLength = 0;      // their total clipped length in pixels
-  uint64_t samples = 0, dropped = 0;  // dropped: non-finite
-  RayStats rays;
-};
 
 class PrimaryBoundary {
  public:

@@ -1,0 +1,38 @@
+// What the boundary estimators (primary_boundary.h, delta_shadow_boundary.h) share: the radiance
+// jump across a curve on the film, measured by one camera sample on each side, and the loop that
+// runs a pass's samples over threads with the same sums for any thread count.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <vector>
+
+#include "core/diff/interior_estimator.h"
+#include "core/diff/pass_driver.h"
+
+namespace invr {
+
+struct BoundaryPassStats {
+  size_t candidateEdges = 0;  // edges a sample may pick
+  double filmLength = 0;      // primary: their total clipped length in pixels
+  uint64_t samples = 0, dropped = 0;  // dropped: non-finite
+  RayStats rays;
+};
+
+struct FilmCrossing {
+  int px = 0, py = 0;  // the pixel of the crossing point
+  Rgb jump;            // L(x - eps n) - L(x + eps n)
+};
+
+// Traces one camera sample of `estimator` on each side of film point x, eps pixels along the unit
+// film normal n (each side on its own fork of `sampler`; ReSTIR reads x's pixel's reservoirs).
+FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator, const Camera& cam, Vec2 x, Vec2 n, float eps,
+                          const Sampler& sampler, SampleCounters& counters);
+
+// Runs samples 0 .. samples-1 in fixed chunks on the thread pool. body(i, counters, grad) adds
+// sample i's derivatives to grad; a sample with a non-finite entry is dropped and counted. Chunks
+// are reduced in order into `gradient`. Throws EvaluationCancelled when `cancel` is raised.
+void runBoundarySamples(int samples, GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel,
+                        BoundaryPassStats& stats, const std::function<void(int, SampleCounters&, PathGradient&)>& body);
+
+}  // namespace invr
