@@ -7,7 +7,10 @@
 #include <algorithm>
 #include <chrono>
 
+#include "core/diff/area_shadow_boundary.h"
+#include "core/diff/delta_shadow_boundary.h"
 #include "core/diff/pass_driver.h"
+#include "core/diff/primary_boundary.h"
 #include "core/diff/render_cost.h"
 #include "core/error.h"
 #include "core/render/path_walk.h"
@@ -44,6 +47,30 @@ std::unique_ptr<InteriorEstimator> estimatorFor(const GradientOptions& o, const 
 
 }  // namespace
 
+void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const GradientOptions& o) {
+  if (!params.hasShapeParameters()) return;
+  const std::string what = "shape parameters: ";
+  if (o.maxDepth != 1)
+    throw InputError(what + "the interior shape derivative covers direct illumination only; set max_depth 1");
+  if (o.pixels.sampler != PixelSampler::All)
+    throw InputError(what + "the boundary terms need dLoss/dI at every pixel; use pixel_sampler all");
+  if (o.variance.enabled) throw InputError(what + "variance-aware losses have no shape derivatives yet");
+  if (o.method == GradientMethod::Restir && !o.boundary.multiViewShortcut)
+    throw InputError(what + "with method restir, reused samples would need their support tested in the geometry they were created in "
+                            "(§3.2), which is not built yet; use method pt or ris, or accept the paper's biased multi-view shortcut "
+                            "with boundary.multi_view_shortcut: true");
+  for (const Light& l : scene.lights)
+    if (l.kind == LightKind::Environment || l.kind == LightKind::ConstantEnvironment)
+      throw InputError(what + "light '" + l.name + "' is an environment: the shadows moving shapes cast in it have no boundary estimator yet "
+                              "(point, spot and area lights do)");
+  for (uint32_t m : params.movingMeshes()) {
+    const Material& mat = scene.materials[size_t(scene.meshMaterial[m])];
+    if (mat.kind != BsdfKind::Diffuse || !mat.albedo.isConstant())
+      throw InputError(what + "shape '" + scene.meshNames[m] + "' has material '" + mat.name +
+                       "': the interior shape derivative covers diffuse, untextured materials only");
+  }
+}
+
 bool visibleFromCamera(const Scene& scene, const Camera& cam, Vec3 p, Vec3 n) {
   float px, py;
   if (!cam.project(p, scene.width, scene.height, px, py)) return false;
@@ -76,6 +103,11 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
     throw InputError("sampling parameters (sampling/...) need method pt");
   for (const auto& m : opt_.lossMasks)
     if (!m.empty() && m.size() != size_t(scene.width) * size_t(scene.height)) throw InputError("a target mask does not match the film's size");
+  checkShapeJob(scene, params, opt_);
+  if (opt_.boundary.samples < 0 || opt_.boundary.lightPoints < 1) throw InputError("boundary samples must be >= 0 and light_points >= 1");
+  // Occluders need not move to cast a moving shadow (a moving receiver drags it): every mesh.
+  if (params.hasShapeParameters())
+    for (const TriangleMesh& m : scene.meshes) topology_.push_back(EdgeTopology::build(m));
 }
 
 GradientEngine::~GradientEngine() = default;
@@ -233,6 +265,40 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   }
   st.secondsDerivative = secondsSince(t0);
   st.biasTerm = st.loss;
+
+  // Boundary terms of shape derivatives: after the derivative pass (whose reservoir chain still
+  // holds the previous step's reservoirs, the neighbours of Alg. 5), weighted by the primal pass's
+  // dL/dI like the interior term.
+  t0 = std::chrono::steady_clock::now();
+  if (!topology_.empty() && !req.renderOnly) {
+    const BoundaryOptions& bo = opt_.boundary;
+    const int samples = bo.samplesFor(scene_.width, scene_.height);
+    auto count = [&](const BoundaryPassStats& b) {
+      st.boundaryEdges += b.candidateEdges;
+      st.boundarySamples += b.samples;
+      st.rays += b.rays;
+      st.drops.boundary += b.dropped;
+    };
+    for (size_t k = 0; k < req.views.size(); ++k) {
+      checkCancel();
+      const int view = req.views[k];
+      auto estimator = estimatorFor(opt_, {scene_, params_, opt_, view, opt_.sppGradient, restirDerivative ? &session.derivative : nullptr},
+                                    restirDerivative);
+      if (bo.primary)
+        count(PrimaryBoundary(scene_, params_, topology_)
+                  .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, Stream::PrimaryBoundary), req.step, *scratch_,
+                       out.gradient, req.cancel));
+      if (bo.secondary && DeltaShadowBoundary::applies(scene_))
+        count(DeltaShadowBoundary(scene_, params_, topology_)
+                  .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, Stream::DeltaShadowBoundary), req.step, *scratch_,
+                       out.gradient, req.cancel));
+      if (bo.secondary && AreaShadowBoundary::applies(scene_))
+        count(AreaShadowBoundary(scene_, params_, topology_)
+                  .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, Stream::AreaShadowBoundary), req.step, *scratch_,
+                       out.gradient, req.cancel));
+    }
+  }
+  st.secondsBoundary = secondsSince(t0);
 
   // Variance pass (Yan et al. 2024): fresh paths, each paired with the primal render as the
   // independent estimate of its pixel's mean (Eq. 18).

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/diff/gradient_options.h"
+#include "core/geometry/edge_topology.h"
 #include "core/diff/parameters.h"
 #include "core/diff/sample_drops.h"
 
@@ -64,6 +65,10 @@ struct GradientStats {
   size_t reservoirsCarried = 0;  // of the preserved: kept because their pixel was not drawn (pixel mini-batches)
   double meanNeighbours = 0, meanM = 0;
   int kdTreesBuilt = 0;  // ReSTIR chains that needed their kd-tree this step (0-2)
+  // Shape parameters: the boundary passes (primary, point/spot and area shadow borders).
+  double secondsBoundary = 0;
+  uint64_t boundaryEdges = 0;    // candidate edges the passes sampled from, summed over views and terms
+  uint64_t boundarySamples = 0;
   RayStats rays;
 };
 
@@ -110,7 +115,12 @@ class GradientEngine {
   std::vector<Image> targets_;
   GradientOptions opt_;
   std::unique_ptr<GradientScratchPool> scratch_;
+  std::vector<EdgeTopology> topology_;  // per mesh, when shape parameters move any (rigid motion keeps it valid)
 };
+
+// Throws InputError saying what a job with shape parameters asks for that the shape derivatives
+// do not cover yet (no-op without shape parameters).
+void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options);
 
 // True if the surface point p is inside camera's frustum and not occluded from it.
 bool visibleFromCamera(const Scene& scene, const Camera& camera, Vec3 p, Vec3 n);

@@ -2,6 +2,7 @@
 // sample counts, the loss and which pixels a step traces.
 #pragma once
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,20 @@ struct VarianceOptions {
   int spp = 1;           // training spp of the variance pass
 };
 
+// Shape parameters: the boundary terms of their derivatives (Wang et al. 2023, §5-6;
+// docs/differentiable-rendering.md). primary/secondary switch the terms off for ablations.
+struct BoundaryOptions {
+  bool primary = true;    // silhouette and crease edges of moving meshes seen by the camera
+  bool secondary = true;  // shadow borders of point, spot and area lights
+  int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
+  int lightPoints = 16;   // area lights: light points per pass whose shadow borders are sampled
+  // ReSTIR: test the support of reused samples in the current geometry (the paper's multi-view
+  // shortcut, §3.2), which is biased once geometry moves. The unbiased test, in the geometry each
+  // sample was created in, is not built yet, so restir jobs with shape parameters must opt in.
+  bool multiViewShortcut = false;
+  int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
+};
+
 struct GradientOptions {
   GradientMethod method = GradientMethod::Restir;
   RestirSettings restir;      // candidates and visibility also apply to ris
@@ -54,6 +69,7 @@ struct GradientOptions {
   // target masks, normalised to mean 1 over the film so the loss is the masked pixels' mean.
   std::vector<std::vector<float>> lossMasks;
   VarianceOptions variance;
+  BoundaryOptions boundary;  // used when shape parameters are optimised
 };
 
 }  // namespace invr

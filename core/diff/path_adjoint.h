@@ -10,33 +10,47 @@
 // the radiance gathered so far) and replays those records in finish(), once L is known. This is
 // path replay (Vicini et al. 2021) without the second walk: the record costs O(depth) memory per
 // path, the random numbers are consumed once. Pdfs, MIS and roulette weights are detached.
+// When the camera ray hits a mesh that shape parameters move, the visitor also collects the
+// interior shape derivative of the direct light there (shape_interior.h).
 #pragma once
 
 #include "core/error.h"
 #include <new>
 
 #include "core/diff/bsdf_adjoint.h"
+#include "core/diff/shape_interior.h"
 #include "core/render/path_walk.h"
 
 namespace invr {
 
 class PathAdjointVisitor {
  public:
-  PathAdjointVisitor(const Scene& scene, const ParameterRegistry& params, Rgb adjoint, PathGradient& grad)
-      : scene_(scene), params_(params), adjoint_(adjoint), grad_(grad) {}
+  PathAdjointVisitor(const Scene& scene, const ParameterRegistry& params, Rgb adjoint, PathGradient& grad, Vec3 cameraDir = Vec3(0.f))
+      : scene_(scene), params_(params), adjoint_(adjoint), grad_(grad), cameraDir_(cameraDir), shapes_(params.hasShapeParameters()) {}
 
   void emission(Rgb weight, Rgb Le, const LightSampleRef& light, float perUnit) {
     L_ += weight * Le;
     if (perUnit > 0.f) lightGradient(light.light, weight * perUnit);
+    // Emission a BSDF sample from a moving camera hit reached (the MIS half of PT).
+    if (shape_.active()) {
+      const SurfaceHit& h = shape_.hit();
+      shape_.add(dot3(adjoint_, weight * Le), lightEndGradient(scene_, light, h.p, h.ns, light.direction()));
+    }
   }
   void direct(Rgb beta, const DirectPath& p, const WalkVertex& v) {
     L_ += beta * p.contribution();
+    if (shapes_ && v.depth == 0 && params_.moves(v.hit->mesh)) {
+      beginShape(v);
+      const Vec3 wi = Frame(v.hit->ns).toWorld(p.wiLocal);
+      shape_.add(dot3(adjoint_, beta * p.contribution()), lightEndGradient(scene_, p.light, v.hit->p, v.hit->ns, wi));
+    }
     if (p.throughBsdf && hasBsdfParameters(params_, v.material))
       addBsdfGradient(params_, scene_, v.material, v.hit->uv, v.bsdf->evalDerivatives(v.wo, p.wiLocal),
                       adjoint_ * beta * p.weight * p.emission, grad_);
     if (p.emissionPerUnit > 0.f) lightGradient(p.light.light, beta * p.weight * p.bsdfValue * p.emissionPerUnit);
   }
   void bounce(const WalkVertex& v, Vec3 wi) {
+    if (shapes_ && v.depth == 0 && params_.moves(v.hit->mesh)) beginShape(v);
     if (!hasBsdfParameters(params_, v.material)) return;
     INVR_INVARIANT(count_ < size_t(kMaxWalkDepth), "more bounces than max_depth allows");  // one per depth
     if (count_ < size_t(kMaxWalkDepth))
@@ -53,6 +67,7 @@ class PathAdjointVisitor {
       addBsdfGradient(params_, scene_, b.material, b.uv, b.dd, adjoint_ * ratio, grad_);
     }
     count_ = 0;
+    shape_.finish(scene_, params_, grad_);
   }
 
  private:
@@ -62,6 +77,10 @@ class PathAdjointVisitor {
     BsdfDerivatives dd;
     Rgb f, gathered;
   };
+  static float dot3(Rgb a, Rgb b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+  void beginShape(const WalkVertex& v) {
+    if (!shape_.active()) shape_.reset(*v.hit, cameraDir_);
+  }
   void lightGradient(uint32_t light, Rgb perUnitContribution) {
     int off = params_.intensityOffset(int(light));
     if (off < 0) return;
@@ -73,6 +92,9 @@ class PathAdjointVisitor {
   const ParameterRegistry& params_;
   Rgb adjoint_;
   PathGradient& grad_;
+  Vec3 cameraDir_;
+  bool shapes_;
+  CameraHitShapeGradient shape_;
   Rgb L_{0.f};
   // One per non-delta bounce through a material with parameters: raw stack storage, constructed
   // on use (no allocation or clearing per path).
@@ -90,7 +112,7 @@ Rgb walkCameraPath(const Scene& scene, const ParameterRegistry* params, Vec3 o, 
     walkPath(scene, o, d, sampler, s, direct, v, ctx);
     return v.L;
   }
-  PathAdjointVisitor v(scene, *params, adjoint, *grad);
+  PathAdjointVisitor v(scene, *params, adjoint, *grad, d);
   walkPath(scene, o, d, sampler, s, direct, v, ctx);
   v.finish();
   return v.radiance();

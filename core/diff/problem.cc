@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "core/diff/gradient_engine.h"
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/render/renderer.h"
@@ -86,14 +87,6 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       fail(field + ".name", e.what());
     }
   }
-  if (p.params.hasShapeParameters())
-    for (int i = 0; i < o.parameters_size(); ++i) {
-      const ParameterSlot& s = p.params.slots()[size_t(i)];
-      if (s.shape >= 0 || s.group >= 0)
-        fail("parameters[" + std::to_string(i) + "].name",
-             "'" + s.name + "': shape parameters are registered, but this version cannot yet estimate their gradient in a job "
-             "(the boundary terms are being built; docs/differentiable-rendering.md says what exists)");
-    }
   p.truth = p.params.read(*p.scene);
   p.initial = p.truth;
   if (o.method() == v1::METHOD_RESTIR || o.method() == v1::METHOD_UNSPECIFIED)
@@ -247,6 +240,22 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       fail("variance", "needs method METHOD_PT: RIS and ReSTIR resampling have no variance derivatives yet");
     if (p.gradient.pixels.sampler != PixelSampler::All && p.gradient.pixels.sampler != PixelSampler::Uniform)
       fail("variance", "works with pixel_sampler all or uniform only");
+  }
+  if (o.has_boundary()) {
+    const auto& b = o.boundary();
+    if (b.samples() < 0 || b.samples() > (1 << 24)) fail("boundary.samples", "must be in 1..16777216 (0: the default)");
+    if (b.light_points() < 0 || b.light_points() > 4096) fail("boundary.light_points", "must be in 1..4096 (0: the default 16)");
+    BoundaryOptions& bo = p.gradient.boundary;
+    bo.samples = b.samples();
+    bo.lightPoints = b.light_points() > 0 ? b.light_points() : 16;
+    bo.primary = !b.has_primary() || b.primary();
+    bo.secondary = !b.has_secondary() || b.secondary();
+    bo.multiViewShortcut = b.multi_view_shortcut();
+  }
+  try {
+    checkShapeJob(*p.scene, p.params, p.gradient);
+  } catch (const InputError& e) {
+    fail("parameters", e.what());
   }
   if (p.params.hasSamplingParameters() && p.gradient.method != GradientMethod::Pt)
     fail("parameters", "sampling parameters (sampling/...) need method METHOD_PT");

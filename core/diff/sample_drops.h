@@ -20,14 +20,17 @@ struct SampleDrops {
   uint64_t variance = 0;
   // Pixel-probability map values that were not finite (they get the uniform share only).
   uint64_t pixelMap = 0;
+  // Edge samples of a boundary pass (shape parameters) with a non-finite derivative.
+  uint64_t boundary = 0;
 
-  uint64_t total() const { return primal + derivative + stage1 + variance + pixelMap; }
+  uint64_t total() const { return primal + derivative + stage1 + variance + pixelMap + boundary; }
   SampleDrops& operator+=(const SampleDrops& o) {
     primal += o.primal;
     derivative += o.derivative;
     stage1 += o.stage1;
     variance += o.variance;
     pixelMap += o.pixelMap;
+    boundary += o.boundary;
     return *this;
   }
 };

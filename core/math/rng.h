@@ -27,6 +27,9 @@ enum class Stream : uint64_t {
   ImageError = 9,        // the image-error meter's renders
   Variance = 10,         // variance pass of a variance-aware step (Yan et al. 2024)
   VarianceMap = 11,      // the per-pixel variance maps of a variance-aware job's results
+  PrimaryBoundary = 12,  // shape derivatives: edge samples of the primary boundary term
+  DeltaShadowBoundary = 13,  // point and spot light shadow borders
+  AreaShadowBoundary = 14,   // area light shadow borders
 };
 
 // The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as

@@ -52,10 +52,17 @@ TEST(Problem, JobMistakesNameTheField) {
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial": 0.3}]})"), "");
 }
 
-TEST(Problem, ShapeParametersAreRefusedUntilTheEngineRunsBoundaryTerms) {
-  // Registered (the name resolves) but refused in a job, saying why; a bad shape name names it.
-  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "cannot yet estimate their gradient");
-  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "parameters[0].name");
+TEST(Problem, ShapeJobsSayWhatTheyCannotDoYet) {
+  // Accepted with pt and ris; restir only with the named shortcut; the rest refused, saying why.
+  EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT"})"), "");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "boundary.multi_view_shortcut");
+  EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"multi_view_shortcut": true}})"), "");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT", "max_depth": 3})"),
+                  "optimization.parameters: shape parameters: the interior shape derivative covers direct illumination only");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT", "pixel_sampler": "uniform"})"),
+                  "pixel_sampler all");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT", "boundary": {"samples": -1}})"),
+                  "optimization.boundary.samples");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/nope/translation"}]})"), "no shape named 'nope'");
 }
 

@@ -1,0 +1,37 @@
+// The secondary boundary term for area lights (Wang et al. 2023, §5, Eq. 21-26): shadow borders
+// that moving occluders or receivers drag across the film. An area light's image is the integral
+// over its points y of the image a point source at y (intensity Le(y) |cos_y| dA) makes, so the
+// derivative of its visibility is the integral over y of that point source's shadow-border term
+// (shadow_border.h). A pass draws `lightPoints` points y_j (light by emitted power, uniform in
+// area), collects each one's silhouette edges, and samples (j, edge, t) from the union; the jump
+// across the border is that source's contribution on each side, evaluated directly (two camera
+// rays and two shadow rays: the rest of the radiance is continuous there), so there is no
+// light-sampling noise in it. Unbiased for any lightPoints >= 1; more points spread the samples
+// over more of the penumbra.
+//
+// The paper's variance reduction on top of this sampling (edge reservoirs reused across steps,
+// Alg. 6; edge importance, Eq. 27; Alg. 8 preservation) is not built yet.
+#pragma once
+
+#include "core/diff/boundary_sampling.h"
+#include "core/geometry/edge_topology.h"
+
+namespace invr {
+
+class AreaShadowBoundary {
+ public:
+  AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
+
+  // Whether the scene has an area light that emits (else the estimator has nothing to do).
+  static bool applies(const Scene& scene);
+
+  BoundaryPassStats run(int view, const Image& adjoint, int samples, int lightPoints, uint64_t stream, uint64_t step,
+                        GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel = nullptr) const;
+
+ private:
+  const Scene& scene_;
+  const ParameterRegistry& params_;
+  const std::vector<EdgeTopology>& topology_;
+};
+
+}  // namespace invr

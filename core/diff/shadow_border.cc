@@ -1,0 +1,84 @@
+#include "core/diff/shadow_border.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/diff/film_projection.h"
+#include "core/diff/primary_boundary.h"
+
+namespace invr {
+
+namespace {
+float offsetAt(Vec3 p) { return 1e-4f * (1.f + maxComponent(vmax(p, -p))); }
+}  // namespace
+
+void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, Vec3 source,
+                        uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh) {
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    if (m == skipMesh || m >= topology.size() || topology[m].edges().empty()) continue;
+    const TriangleMesh& mesh = scene.meshes[m];
+    std::vector<Vec3> normals(mesh.triangleCount());
+    for (uint32_t f = 0; f < normals.size(); ++f) normals[f] = scene.faceNormal(m, f);
+    for (const MeshEdge& e : topology[m].edges()) {
+      if (!EdgeTopology::silhouetteFrom(e, mesh, normals, source)) continue;
+      ShadowEdge se{sourceIndex, m, mesh.positions[e.v0], mesh.positions[e.v1]};
+      const float len = length(se.b - se.a);
+      if (!(len > 0.f)) continue;
+      const Vec3 mid = (se.a + se.b) * 0.5f, dir = normalize(mid - source);
+      SurfaceHit hit;
+      const bool falls = scene.intersect(mid + dir * offsetAt(mid), dir, hit);
+      const bool moving = params.moves(m) || (falls && params.moves(hit.mesh));
+      edges.push_back(se);
+      weights.push_back(len * (falls ? 1.f : kUnlikelyShadowEdgeWeight) * (moving ? 1.f : kUnlikelyShadowEdgeWeight));
+    }
+  }
+}
+
+bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, Vec3 l, const ShadowEdge& se, float t,
+                       ShadowBorderPoint& bp) {
+  const int W = scene.width, H = scene.height;
+  bp.e = se.a + (se.b - se.a) * t;
+  bp.toE = bp.e - l;
+  const float distE = length(bp.toE);
+  if (!(distE > 0.f)) return false;
+  const Vec3 dir = bp.toE / distE;
+  // Started just past the edge so the grazing faces of the edge itself are not hit.
+  if (!scene.intersect(bp.e + dir * offsetAt(bp.e), dir, bp.hit)) return false;
+  if (!params.moves(se.mesh) && !params.moves(bp.hit.mesh)) return false;  // nothing here moves
+  const Vec3 y = bp.hit.p, nr = bp.hit.ng;
+  bp.denom = dot(nr, bp.toE);
+  if (std::abs(bp.denom) < 1e-8f * distE) return false;  // grazing the receiver: measure zero
+  if (!(dot(y - cam.eye, cam.forward) > 0.f)) return false;
+  bp.x = filmPosition(cam, y, W, H);
+  if (!(bp.x.x >= 0.f && bp.x.y >= 0.f && bp.x.x < float(W) && bp.x.y < float(H))) return false;
+  bp.s = length(y - l) / distE;
+  // Film tangent of the curve: dy/dt = ds/dt (e - l) + s (b - a), ray-plane at y.
+  const Vec3 de = se.b - se.a;
+  const Vec3 dydt = bp.toE * (-bp.s * dot(nr, de) / bp.denom) + de * bp.s;
+  filmJacobian(cam, y, H, bp.jx, bp.jy);
+  const Vec2 dxdt(dot(bp.jx, dydt), dot(bp.jy, dydt));
+  bp.speed = std::sqrt(dxdt.x * dxdt.x + dxdt.y * dxdt.y);
+  if (!(bp.speed > 0.f)) return false;
+  bp.n = Vec2(-dxdt.y / bp.speed, dxdt.x / bp.speed);
+  // The sides must straddle the border the renderer draws, which its shadow rays' origin offset
+  // (offsetOrigin) displaces by a few offsets: step that far, at least, on the film. (At 1e-3 px
+  // both sides fell on the same side of the drawn border and the estimate was 0.)
+  const float offsetWorld = 8.f * offsetAt(y);
+  bp.eps = std::max(PrimaryBoundary::kSideOffsetPixels, offsetWorld * std::max(length(bp.jx), length(bp.jy)));
+  return true;
+}
+
+void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
+                             double w, PathGradient& grad) {
+  // dLoss/dtheta_k = w (n . J dy/dtheta_k), dy/dtheta_k = ds_k (e - l) + s de_k with
+  // ds_k = (nr . u_k - s nr . de_k) / (nr . (e - l)); u_k, de_k the receiver's and the occluder's
+  // velocities. With g = w J^T n and c = g . (e - l) / (nr . (e - l)):
+  //   occluder: (s (g - c nr)) . de_k,   receiver: (c nr) . u_k.
+  const Vec3 nr = bp.hit.ng;
+  const Vec3 g = (bp.jx * bp.n.x + bp.jy * bp.n.y) * float(w);
+  const float c = dot(g, bp.toE) / bp.denom;
+  params.addPointGradient(scene, se.mesh, bp.e, (g - nr * c) * bp.s, grad);
+  params.addPointGradient(scene, bp.hit.mesh, bp.hit.p, nr * c, grad);
+}
+
+}  // namespace invr

@@ -1,0 +1,59 @@
+// What the shadow-boundary estimators (delta_shadow_boundary.h for point and spot lights,
+// area_shadow_boundary.h for points sampled on area lights) share: the silhouette edges an
+// occluder shows a point source, and the border point a (source, edge, t) sample lands on.
+//
+// For a source at l and an occluder edge a-b, e(t) = a + t (b - a), the shadow point y(t) is the
+// first surface the ray l -> e(t) meets beyond e, and x(t) its film position. Across the film
+// curve x(t) what the pixel sees from that source jumps; Reynolds transport gives
+//     d/dtheta sum_p w_p I_p = ∫ w(x) ΔL(x) (v . perp(dx/dt)) dt,
+// with v the film velocity of the curve, from dy/dtheta by the ray-plane intersection at y given
+// the occluder's velocity at e and the receiver's at y (either or both may move).
+#pragma once
+
+#include <vector>
+
+#include "core/diff/gradient_sink.h"
+#include "core/diff/parameters.h"
+#include "core/geometry/edge_topology.h"
+#include "core/scene/scene.h"
+
+namespace invr {
+
+struct ShadowEdge {
+  uint32_t source;  // which point source (the estimator's own index)
+  uint32_t mesh;
+  Vec3 a, b;
+};
+
+// Edges a sample may pick carry a weight proportional to their length, times this when a ray
+// through the midpoint finds no receiver, and again when neither the edge's mesh nor that
+// receiver moves (guesses: any positive weight is unbiased).
+constexpr float kUnlikelyShadowEdgeWeight = 0.05f;
+
+// Appends the silhouette edges every mesh with a topology (but `skipMesh`: the emitter a source
+// lies on) shows the point source at `source`.
+void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, Vec3 source,
+                        uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh = UINT32_MAX);
+
+struct ShadowBorderPoint {
+  Vec3 e, toE;       // the edge point and e - l
+  SurfaceHit hit;    // the shadow point y on its receiver
+  float s = 0.f;     // |y - l| / |e - l|
+  float denom = 0.f; // nr . (e - l)
+  Vec2 x, n;         // film position and the unit film normal of the border there
+  float speed = 0.f; // |dx/dt| in pixels
+  float eps = 0.f;   // how far (pixels) each side is sampled from x
+  Vec3 jx, jy;       // d(film x, y)/dy
+};
+
+// The border point of edge `se` at t for a source at l; false when there is none on the film
+// or nothing there moves.
+bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, Vec3 l, const ShadowEdge& se, float t,
+                       ShadowBorderPoint& out);
+
+// Adds w * (n . J dy/dtheta) for the occluder's and the receiver's shape parameters, where w is
+// the sample's weight: adjoint . ΔL * speed / pdf.
+void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
+                             double w, PathGradient& grad);
+
+}  // namespace invr
