@@ -210,11 +210,13 @@ void JobRunner::runSteps(Context& c) {
       g.stats.varianceTerm = r->variance_term();
       g.stats.cost = r->cost();
       g.stats.secondsVariance = r->seconds_variance();
+      g.stats.secondsBoundary = r->seconds_boundary();
+      g.stats.boundaryEdges = r->boundary_edges();
       g.stats.reservoirs = r->reservoirs();
       g.stats.meanM = r->mean_m();
       g.stats.meanNeighbours = r->mean_neighbours();
       slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session() +
-                                      r->seconds_stage1() + r->seconds_variance());
+                                      r->seconds_stage1() + r->seconds_variance() + r->seconds_boundary());
       out[s] = std::move(g);
     }
     return out;
@@ -260,6 +262,10 @@ void JobRunner::runSteps(Context& c) {
       sp.set_variance_term(st.varianceTerm);
       sp.set_cost(st.cost);
       sp.set_variance_seconds(st.secondsVariance);
+    }
+    if (p.params.hasShapeParameters()) {
+      sp.set_boundary_seconds(st.secondsBoundary);
+      sp.set_boundary_edges(st.boundaryEdges);
     }
     sp.set_reservoirs(st.reservoirs);
     sp.set_mean_m(st.meanM);

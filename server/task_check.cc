@@ -21,7 +21,7 @@ std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const
   if (!r.error().empty()) return "";  // a failed task: its error is reported, nothing else is read
   if (r.spec_unknown()) return "";    // the spec is sent again; nothing else is read
   if (r.input_error()) return "input_error set without an error text";
-  for (double s : {r.seconds_primal(), r.seconds_derivative(), r.seconds_reservoir(), r.seconds_session(), r.seconds_stage1(), r.seconds_variance()})
+  for (double s : {r.seconds_primal(), r.seconds_derivative(), r.seconds_reservoir(), r.seconds_session(), r.seconds_stage1(), r.seconds_variance(), r.seconds_boundary()})
     if (!finiteNonNegative(s)) return "a timing is negative or not finite";
   if (!std::isfinite(r.mean_m()) || !std::isfinite(r.mean_neighbours())) return "reservoir statistics are not finite";
   if (!finiteNonNegative(r.cost())) return "the render cost is negative or not finite";

@@ -379,6 +379,8 @@ class Worker {
       res.set_variance_term(g.stats.varianceTerm);
       res.set_cost(g.stats.cost);
       res.set_seconds_variance(g.stats.secondsVariance);
+      res.set_seconds_boundary(g.stats.secondsBoundary);
+      res.set_boundary_edges(g.stats.boundaryEdges);
       res.set_non_finite(g.stats.nonFiniteSamples);
       res.set_reservoirs(g.stats.reservoirs);
       res.set_mean_m(g.stats.meanM);

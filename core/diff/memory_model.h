@@ -15,7 +15,8 @@ struct WorkerMemory {
   double reservoirs = 0;  // ReSTIR chains (current and previous) with their kd-tree
   double gradients = 0;   // per-thread gradient scratch
   double variance = 0;    // variance-aware jobs: the variance pass's images and per-thread decision records
-  double total() const { return geometry + textures + images + reservoirs + gradients + variance; }
+  double boundary = 0;    // shape parameters: edge topology of every mesh and a boundary pass's candidate edges
+  double total() const { return geometry + textures + images + reservoirs + gradients + variance + boundary; }
 };
 
 // `threads`: the worker's thread count (each holds a gradient scratch).

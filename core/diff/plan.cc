@@ -38,7 +38,11 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   }
   const auto& g = p.gradient;
   std::vector<std::string> est;
-  if (g.maxDepth > 1)
+  const bool shapes = p.params.hasShapeParameters();
+  if (shapes)
+    est.push_back("primal and derivative: direct illumination; interior term (Wang et al. 2023, Eq. 12-13) for materials and lights, and "
+                  "for shapes at the camera hit (the hit slides along the fixed camera ray, normals turn; diffuse untextured moving meshes)");
+  else if (g.maxDepth > 1)
     est.push_back("primal and derivative: path tracing up to " + std::to_string(g.maxDepth) +
                   " vertices with NEE + MIS and Russian roulette, derivatives by replaying each path's recorded vertices; interior term only");
   else
@@ -79,7 +83,34 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
     for (float x : p.scene->sampling.survival) q += (q.empty() ? "" : ", ") + num(x);
     est.push_back("Russian roulette: fixed survival per bounce (" + q + "; the last repeats)");
   }
-  est.push_back("boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility discontinuity moves with them");
+  if (shapes) {
+    const auto& b = g.boundary;
+    const std::string n = std::to_string(b.samplesFor(s.width, s.height));
+    bool delta = false, area = false;
+    for (const Light& l : s.lights) {
+      delta = delta || l.isDelta();
+      area = area || l.kind == LightKind::Area;
+    }
+    est.push_back(b.primary ? "boundary, primary (Eq. 9-11): " + n + " edge samples per view and step on silhouette and crease edges of moving "
+                                  "meshes, by clipped film length; both sides traced with the interior estimator; box pixel filter, so no "
+                                  "pixel-boundary term"
+                            : std::string("boundary, primary: off (ablation)"));
+    if (!b.secondary)
+      est.push_back("boundary, secondary (shadow borders): off (ablation)");
+    else {
+      if (delta)
+        est.push_back("boundary, secondary, point/spot lights: " + n +
+                      " samples per view and step on occluder silhouette edges seen from each light, jump traced with the interior estimator");
+      if (area)
+        est.push_back("boundary, secondary, area lights (Eq. 21-26): " + n + " samples per view and step over the silhouette edges of " +
+                      std::to_string(b.lightPoints) + " light points per pass, jump evaluated directly; edge reservoirs and edge importance "
+                      "(Alg. 6, Eq. 27) not built");
+    }
+    if (g.method == GradientMethod::Restir)
+      est.push_back("reused samples' support tested in the current geometry (multi-view shortcut, §3.2: biased while geometry moves)");
+  } else {
+    est.push_back("boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility discontinuity moves with them");
+  }
   est.push_back("light transport of targets, gradients and final renders: " +
                 (g.maxDepth > 1 ? std::to_string(g.maxDepth) + " vertices, NEE + MIS" : std::string("direct illumination")));
   out << "estimators:\n";
@@ -110,7 +141,8 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   out << "memory per worker (largest shard, " << workerThreads << " threads): ~" << mib(mem.total()) << " MiB (geometry "
       << mib(mem.geometry) << ", images " << mib(mem.images) << ", reservoirs " << mib(mem.reservoirs) << ", gradients "
       << mib(mem.gradients) << ", textures " << mib(mem.textures)
-      << (g.variance.enabled ? ", variance pass " + mib(mem.variance) : std::string()) << ")\n";
+      << (g.variance.enabled ? ", variance pass " + mib(mem.variance) : std::string())
+      << (shapes ? ", boundary edges " + mib(mem.boundary) : std::string()) << ")\n";
   plan.set_worker_threads(workerThreads);
   plan.set_worker_memory_bytes(mem.total());
   plan.set_geometry_bytes(mem.geometry);
@@ -119,6 +151,7 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   plan.set_gradient_bytes(mem.gradients);
   plan.set_texture_bytes(mem.textures);
   plan.set_variance_bytes(mem.variance);
+  plan.set_boundary_bytes(mem.boundary);
   plan.set_text(out.str());
   return plan;
 }

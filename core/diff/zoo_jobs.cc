@@ -98,6 +98,16 @@ v1::JobSpec zooJob(const std::string& name) {
     v->set_weight(1);
     v->set_samples(16);
     v->set_spp(2);
+  } else if (name == "pose") {
+    // Shape parameters (Wang et al. 2023, §5-6): the box starts 0.1 off in x, y and z and turned
+    // 8 degrees about each axis. RIS: ReSTIR would need the biased multi-view shortcut.
+    param(o, "shapes/object/translation", 0.1, 0.01);
+    param(o, "shapes/object/rotation", 8, 0.5);
+    o->set_method(v1::METHOD_RIS);
+    o->clear_restir();
+    o->set_loss("l2");
+    o->set_steps(150);
+    o->set_learning_rate_half_life(75);
   } else if (name == "roulette") {
     // Yan et al. 2024, Fig. 9: survival per bounce against time x variance (Eq. 33, 36), from
     // q = 1 (no roulette); 8 bounces.

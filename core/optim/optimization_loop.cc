@@ -49,6 +49,9 @@ void accumulateShard(GradientResult& total, const GradientResult& shard) {
   t.secondsDerivative += s.secondsDerivative;
   t.secondsReservoirUpdate += s.secondsReservoirUpdate;
   t.secondsStage1 += s.secondsStage1;
+  t.secondsBoundary += s.secondsBoundary;
+  t.boundaryEdges += s.boundaryEdges;
+  t.boundarySamples += s.boundarySamples;
   t.pixelsTraced += s.pixelsTraced;
   t.reservoirs += s.reservoirs;
   t.reservoirsPreserved += s.reservoirsPreserved;

@@ -363,6 +363,25 @@ v1::Scene roulette() {
   return m.s;
 }
 
+// Shape parameters: a box's pose (translation + rotation) from one image under an area light.
+// Turned so that no edge lies along the pixel grid.
+v1::Scene pose() {
+  SceneMaker m;
+  m.s.set_name("pose");
+  m.diffuse("floor", 0.55, 0.55, 0.55);
+  m.diffuse("object", 0.75, 0.45, 0.25);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* b = m.shape("object", "object");
+  b->mutable_box();
+  SceneMaker::place(b, {0.25, 0.2, 0.3}, {0, 35, 0}, {0, 0.2, 0});
+  m.quad("lamp", "emitter", {0.25, 0.25, 1}, kFaceDown, {0.8, 2.2, 0.7});
+  m.areaLight("lamp", "lamp", 40, 38, 34);
+  m.view("front", {0.4, 1.4, 2.4}, {0, 0.25, 0}, 40);
+  m.film(128, 96);
+  return m.s;
+}
+
 struct ZooDef {
   ZooEntry entry;
   std::function<v1::Scene()> build;
@@ -380,6 +399,7 @@ const std::vector<ZooDef>& zoo() {
       {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},
       {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},
       {{"roulette", "closed room lit indirectly, 8 bounces; Russian-roulette survival per bounce"}, roulette},
+      {{"pose", "a box under an area light; its translation and rotation from one image (shape parameters)"}, pose},
   };
   return defs;
 }
