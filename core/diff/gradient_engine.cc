@@ -68,6 +68,13 @@ void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const Gr
     if (mat.kind != BsdfKind::Diffuse || !mat.albedo.isConstant())
       throw InputError(what + "shape '" + scene.meshNames[m] + "' has material '" + mat.name +
                        "': the interior shape derivative covers diffuse, untextured materials only");
+    // Measured: a smooth sphere moving sideways came out 5.6 % low against finite differences
+    // (8 SE), all of it next to the silhouette; the same sphere filling the view agreed.
+    if (!scene.meshes[m].normals.empty())
+      throw InputError(what + "shape '" + scene.meshNames[m] +
+                       "' has interpolated vertex normals: next to its silhouette the shading normal turns away from the camera "
+                       "inside faces and the radiance jumps there, a moving discontinuity no boundary estimator samples yet; "
+                       "use a flat-shaded mesh (no vertex normals)");
   }
 }
 

@@ -244,6 +244,19 @@ TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {
   o = shapeOptions(GradientMethod::Pt);
   o.pixels.sampler = PixelSampler::Uniform;
   EXPECT_NE(refusal(o).find("pixel_sampler all"), std::string::npos);
+  // A smooth-shaded moving mesh (the zoo sphere has vertex normals).
+  auto smooth = test::sceneFromJson(R"({"materials": [{"name": "m", "diffuse": {}}],
+    "shapes": [{"name": "ball", "sphere": {}, "material": "m"}],
+    "lights": [{"name": "bulb", "point": {"position": {"z": 3}, "intensity": {"r": 1, "g": 1, "b": 1}}}],
+    "views": [{"eye": {"z": 4}, "target": {}}], "film": {"width": 8, "height": 8}})");
+  ParameterRegistry ballReg;
+  ballReg.add(*smooth, "shapes/ball/translation");
+  try {
+    checkShapeJob(*smooth, ballReg, shapeOptions(GradientMethod::Pt));
+    ADD_FAILURE() << "a smooth moving mesh was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("interpolated vertex normals"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ShapeGradient, DeterministicForAnyThreadCount) {
