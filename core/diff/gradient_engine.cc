@@ -55,10 +55,6 @@ void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const Gr
   if (o.pixels.sampler != PixelSampler::All)
     throw InputError(what + "the boundary terms need dLoss/dI at every pixel; use pixel_sampler all");
   if (o.variance.enabled) throw InputError(what + "variance-aware losses have no shape derivatives yet");
-  if (o.method == GradientMethod::Restir && !o.boundary.multiViewShortcut)
-    throw InputError(what + "with method restir, reused samples would need their support tested in the geometry they were created in "
-                            "(§3.2), which is not built yet; use method pt or ris, or accept the paper's biased multi-view shortcut "
-                            "with boundary.multi_view_shortcut: true");
   for (const Light& l : scene.lights)
     if (l.kind == LightKind::Environment || l.kind == LightKind::ConstantEnvironment)
       throw InputError(what + "light '" + l.name + "' is an environment: the shadows moving shapes cast in it have no boundary estimator yet "

@@ -40,8 +40,8 @@ struct BoundaryOptions {
   int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
   int lightPoints = 16;   // area lights: light points per pass whose shadow borders are sampled
   // ReSTIR: test the support of reused samples in the current geometry (the paper's multi-view
-  // shortcut, §3.2), which is biased once geometry moves. The unbiased test, in the geometry each
-  // sample was created in, is not built yet, so restir jobs with shape parameters must opt in.
+  // shortcut, §3.2), which is biased once geometry moves. Default: in the geometry each sample was
+  // created in (unbiased; the reservoir store keeps the moving meshes' poses for that).
   bool multiViewShortcut = false;
   int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
 };

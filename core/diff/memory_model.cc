@@ -16,6 +16,11 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
   WorkerMemory w;
   w.geometry = tris * (3 * 12 + 12 + 4 * 3) * 2.5;  // vertices, face normals, indices; BVH ~1.5x
+  // Moving meshes keep their rest pose (vertices, normals) and a BVH of it, for tests in past
+  // geometry (Scene::pose()).
+  double movingTris = 0;
+  for (uint32_t m : p.params.movingMeshes()) movingTris += double(s.meshes[m].triangleCount());
+  w.geometry += movingTris * (3 * 12 + 4 * 3) * 2.5;
   double texels = 0;
   for (const auto& sl : p.params.slots()) texels += sl.width ? double(sl.size) * 4 : 0;
   w.textures = texels * 3;

@@ -107,7 +107,10 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
                       "(Alg. 6, Eq. 27) not built");
     }
     if (g.method == GradientMethod::Restir)
-      est.push_back("reused samples' support tested in the current geometry (multi-view shortcut, §3.2: biased while geometry moves)");
+      est.push_back(b.multiViewShortcut
+                        ? "reused samples' support tested in the current geometry (multi-view shortcut, §3.2: biased while geometry moves)"
+                        : "reused samples' support tested in the geometry they were created in (§3.2: unbiased; the poses of the moving "
+                          "shapes are kept per step)");
   } else {
     est.push_back("boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility discontinuity moves with them");
   }

@@ -19,6 +19,7 @@ class RestirEstimator final : public InteriorEstimator {
       : scene_(s.scene), params_(s.params), settings_(s.options.restir), previous_(s.previous), view_(s.view), spp_(s.spp) {
     walk_.maxDepth = 1;
     walk_.bsdfMis = false;
+    settings_.supportInCreatedGeometry = !s.options.boundary.multiViewShortcut;
     const Camera& cam = scene_.cameras[size_t(view_)];
     const int W = scene_.width, H = scene_.height;
     pixelFootprint_ = s.options.radiusPixels * 2.f * cam.tanHalfFovY / float(H);  // world radius per unit distance
@@ -96,6 +97,7 @@ class RestirEstimator final : public InteriorEstimator {
       keep->setNormal(hit.ns);
       keep->deltaKnown = deltaKnown;
       keep->deltaVisible = deltaVisible;
+      keep->pose = previous_ ? previous_->createdPose() : 0;
     }
     return contributes;
   }

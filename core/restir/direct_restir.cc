@@ -1,24 +1,42 @@
 #include "core/restir/direct_restir.h"
 
+#include <cmath>
+
 #include "core/error.h"
 
 namespace invr {
 
 namespace {
 
-// Target of light sample y at a stored reservoir's shading point, in the current scene (the
-// support test of Alg. 3, line 9). Uses that point's own view direction: towards the eye of the
-// camera that saw it (a primary hit lies on that camera's ray).
-float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRef& y, bool visibility, PathContext* ctx) {
+// Target of light sample y at a stored reservoir's shading point (the support test of Alg. 3,
+// line 9), in the geometry `pose` (null: the current one). Uses that point's own view direction:
+// towards the eye of the camera that saw it (a primary hit lies on that camera's ray). Lights do
+// not move (shape jobs refuse moving emitters), so y is where it was.
+float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRef& y, bool visibility, PathContext* ctx,
+               const PoseSnapshot* pose = nullptr) {
   // visibility = false skips the shadow ray (used when V is already known to be 1).
-  SurfaceHit h = scene.surfaceAt(q.mesh, q.tri, q.b1, q.b2);
+  SurfaceHit h = pose ? scene.surfaceAt(*pose, q.mesh, q.tri, q.b1, q.b2) : scene.surfaceAt(q.mesh, q.tri, q.b1, q.b2);
   Bsdf b = scene.materials[size_t(scene.meshMaterial[h.mesh])].at(h.uv);
   const Vec3 wo = normalize(scene.cameras[q.view].eye - h.p);
   ShadingPoint sp{&h, &b, Frame(h.ns), Vec3(), wo};
   sp.wo = sp.frame.toLocal(wo);
   LightSample ls = evalLightSample(scene, y, h.p);
   float t = risTarget(sp, ls);
-  if (t > 0.f && visibility && traceShadow(scene, sp, ls, ctx)) t = 0.f;
+  if (t > 0.f && visibility) {
+    if (!pose) {
+      if (traceShadow(scene, sp, ls, ctx)) t = 0.f;
+    } else {
+      // traceShadow's ray, traced through the geometry of `pose`.
+      if (ctx && ctx->stats) ++ctx->stats->shadow;
+      Vec3 o = Scene::shadowOrigin(h.p, h.ng, ls.wi);
+      bool blocked;
+      if (std::isinf(ls.dist))
+        blocked = scene.occludedDirection(*pose, o, ls.wi);
+      else
+        blocked = scene.occludedSegment(*pose, o, isBlack(ls.lightNormal) ? ls.lightPoint : offsetOrigin(ls.lightPoint, ls.lightNormal, -ls.wi));
+      if (blocked) t = 0.f;
+    }
+  }
   return t;
 }
 
@@ -31,9 +49,12 @@ float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRe
 // whose support contains y, the result is unbiased for any M_j, so capping M (the M-cap) changes
 // variance, never the mean. We chose Z over generalised-RIS MIS weights because it needs one
 // target evaluation per neighbour for the chosen sample only (k + 1 instead of (k + 1)^2). The
-// support test uses what the neighbour recorded when it was created where that is enough (below),
-// else the current configuration: material and light parameters bounded away from zero do not
-// change the support.
+// support test must ask whether the neighbour's own target was positive at y, in the geometry the
+// neighbour was created in (§3.2): where its sample came from. What the neighbour recorded answers
+// that without evaluating anything where it is enough (below); otherwise the target is evaluated
+// in that geometry (shape jobs keep the poses of the moving meshes per step, ReservoirStore::poseOf)
+// or, with the paper's multi-view shortcut, in the current one (biased while geometry moves).
+// Material and light parameters bounded away from zero do not change the support.
 bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, const RestirSettings& s,
                         const ReservoirStore* prev, PathContext* ctx, DirectPath& out, Reservoir& combined,
                         RestirCounters* counters, const NeighbourHints* hints, uint8_t* deltaKnown, uint8_t* deltaVisible) {
@@ -87,26 +108,29 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   float Z = 0.f;
   if (c.targetY > 0.f) {
     Z = fresh.M;  // fresh candidates come from light sampling here: they cover every y with target > 0
-    // On unmoved geometry, what a neighbour's point knew when it was created answers its support
-    // test without re-evaluating the target there (surface, texture, BSDF, light, shadow ray):
+    // What a neighbour's point knew when it was created answers its support test without
+    // re-evaluating the target there (surface, texture, BSDF, light, shadow ray):
     // - its own sample had a positive target there, visibility included (W > 0);
     // - a delta light it traced had a positive target there (rays are traced only for those), and
     //   the ray says whether it was visible.
-    // That is the support of the distribution its sample was drawn from, so it is the exact test;
-    // re-evaluating in the current configuration agrees unless a parameter reached zero.
-    const bool staticGeometry = scene.geometryVersion() == 0;
+    // Both describe the geometry it was created in, which is the exact test. The multi-view
+    // shortcut tests in the current geometry instead, so it takes them only while nothing moved.
+    const bool created = s.supportInCreatedGeometry;
+    const bool recordedHolds = created || scene.geometryVersion() == 0;
     const uint32_t yBit = c.y.light < 8 && scene.lights[c.y.light].isDelta() ? 1u << c.y.light : 0u;
     for (int i = 0; i < k; ++i) {
       const StoredReservoir& q = prev->items()[nb[i]];
-      if (staticGeometry && i == chosenFrom) {
+      if (recordedHolds && i == chosenFrom) {
         Z += nbM[i];
         continue;
       }
-      if (staticGeometry && (q.deltaKnown & yBit)) {
+      if (recordedHolds && (q.deltaKnown & yBit)) {
         if (q.deltaVisible & yBit) Z += nbM[i];
         continue;
       }
-      if (targetAt(scene, q, c.y, s.visibilityInTarget, ctx) > 0.f) Z += nbM[i];
+      const PoseSnapshot* pose = created ? prev->poseOf(q) : nullptr;
+      if (pose && pose->version == scene.geometryVersion()) pose = nullptr;  // created in this geometry
+      if (targetAt(scene, q, c.y, s.visibilityInTarget, ctx, pose) > 0.f) Z += nbM[i];
     }
   }
   c.finalize(Z);

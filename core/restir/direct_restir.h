@@ -14,6 +14,9 @@ struct RestirSettings {
   float radius = 0.05f;           // search radius (world units; the engine sets it from radiusFraction)
   float normalDot = 0.9f;         // reject neighbours whose normal differs more
   float mCap = 16.f;              // confidence cap on each reused reservoir (2 x M by default)
+  // Test a reused sample's support in the geometry it was created in (unbiased while geometry
+  // moves, §3.2); false: in the current geometry (the paper's multi-view shortcut).
+  bool supportInCreatedGeometry = true;
 };
 
 struct RestirCounters {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <nanoflann.hpp>
 
+#include "core/error.h"
+
 namespace invr {
 
 namespace {
@@ -88,9 +90,28 @@ ReservoirStore& ReservoirStore::operator=(ReservoirStore&& o) noexcept {
   return *this;
 }
 
+void ReservoirStore::keepReferencedPoses() {
+  if (poses_.empty()) return;
+  // Keep the geometries some item was created in, renumbered in their old (creation) order.
+  std::vector<uint16_t> renumber(poses_.size(), UINT16_MAX);
+  for (const StoredReservoir& q : items_)
+    INVR_INVARIANT(q.pose < poses_.size(), "a stored reservoir refers to a geometry the store never recorded");
+  for (const StoredReservoir& q : items_) renumber[q.pose] = 0;
+  std::vector<PoseSnapshot> kept;
+  for (size_t i = 0; i < poses_.size(); ++i)
+    if (renumber[i] == 0) {
+      renumber[i] = uint16_t(kept.size());
+      kept.push_back(std::move(poses_[i]));
+    }
+  for (StoredReservoir& q : items_) q.pose = renumber[q.pose];
+  poses_ = std::move(kept);
+  currentPose_ = uint16_t(poses_.size());  // refresh() records the next geometry
+}
+
 void ReservoirStore::assign(std::vector<StoredReservoir> items) {
   recycled_ = std::move(items_);
   items_ = std::move(items);
+  keepReferencedPoses();
   slots_ = PixelSlots();
   slotsComplete_ = false;
   placedVersion_ = UINT64_MAX;
@@ -101,6 +122,7 @@ void ReservoirStore::assign(std::vector<StoredReservoir> items) {
 void ReservoirStore::assignPlaced(std::vector<StoredReservoir> items, uint64_t geometryVersion, PixelSlots slots) {
   recycled_ = std::move(items_);
   items_ = std::move(items);
+  keepReferencedPoses();
   slots_ = std::move(slots);
   size_t indexed = 0;
   for (uint32_t i : slots_.item) indexed += i != UINT32_MAX;
@@ -111,6 +133,22 @@ void ReservoirStore::assignPlaced(std::vector<StoredReservoir> items, uint64_t g
 }
 
 void ReservoirStore::refresh(const Scene& scene) {
+  if (scene.motion.anyMoving()) {
+    if (poses_.empty() || poses_.back().version != scene.geometryVersion()) {
+      // At most one geometry per step survives into the table, and a preserved item keeps its own
+      // alive: past 60000 of them, the oldest items go (their geometry is dropped with them).
+      if (poses_.size() >= 60000) {
+        const uint16_t oldest = 0;
+        std::erase_if(items_, [&](const StoredReservoir& q) { return q.pose == oldest; });
+        for (StoredReservoir& q : items_) --q.pose;
+        poses_.erase(poses_.begin());
+        slots_ = PixelSlots();
+        slotsComplete_ = false;
+      }
+      poses_.push_back(scene.pose());
+    }
+    currentPose_ = uint16_t(poses_.size() - 1);
+  }
   if (placedVersion_ != scene.geometryVersion()) {
     for (auto& s : items_) {
       SurfaceHit h = scene.surfaceAt(s.mesh, s.tri, s.b1, s.b2);

@@ -41,6 +41,9 @@ struct alignas(64) StoredReservoir {
   // Shadow rays from this point to delta lights 0..7 traced when it was created (bit i: light i
   // known, and visible). With unmoved geometry they still hold, so support tests need no new ray.
   uint8_t deltaKnown = 0, deltaVisible = 0;
+  // The geometry it was created in (ReservoirStore::poseOf; set from createdPose() of the store
+  // the pass reused): the support test of a reuse evaluates its target there (§3.2).
+  uint16_t pose = 0;
 
   Vec3 n() const { return Vec3(float(nq[0]), float(nq[1]), float(nq[2])) * (1.f / 32767.f); }
   void setNormal(Vec3 v) {
@@ -111,6 +114,13 @@ class ReservoirStore {
   // every item that can lie within the reuse radius.
   bool slotsCover(int view) const;
   bool empty() const { return items_.empty(); }
+  // The geometry this step's new reservoirs are created in (refresh() records it): what they set
+  // as their `pose`. Only kept while some mesh moves (shape jobs).
+  uint16_t createdPose() const { return currentPose_; }
+  // The geometry item q was created in, or null when no mesh moves (then it is the current one).
+  const PoseSnapshot* poseOf(const StoredReservoir& q) const { return q.pose < poses_.size() ? &poses_[q.pose] : nullptr; }
+  size_t poseCount() const { return poses_.size(); }
+
   // Whether a kd-tree is built at the moment (it is built on first need after refresh()).
   bool hasIndex() const { return index_ != nullptr; }
   // Builds the kd-tree now rather than on first need.
@@ -119,12 +129,17 @@ class ReservoirStore {
  private:
   struct Index;
   const Index& index() const;
+  void keepReferencedPoses();
   std::vector<StoredReservoir> items_, recycled_;
   PixelSlots slots_;
   bool slotsComplete_ = false;  // slots_ index every item, placed where they were stored
   mutable std::unique_ptr<Index> index_;
   mutable std::unique_ptr<std::once_flag> indexOnce_ = std::make_unique<std::once_flag>();
   uint64_t placedVersion_ = UINT64_MAX;  // geometry version p and n were computed in
+  // The geometries items were created in, those some item still refers to (assignPlaced() drops
+  // the rest and renumbers), plus the current one.
+  std::vector<PoseSnapshot> poses_;
+  uint16_t currentPose_ = 0;
 };
 
 }  // namespace invr

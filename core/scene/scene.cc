@@ -1,5 +1,7 @@
 #include "core/scene/scene.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "core/error.h"
@@ -82,7 +84,13 @@ void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
     motion.moving_[m] = 1;
     motion.restPositions_[m] = meshes[m].positions;
     motion.restNormals_[m] = meshes[m].normals;
+    motion.movingList_.insert(std::lower_bound(motion.movingList_.begin(), motion.movingList_.end(), m), m);
     dynamicMeshes_[m] = true;
+    if (accelerated_) {
+      if (restAccel_.size() != meshes.size()) restAccel_.resize(meshes.size());
+      restAccel_[m] = std::make_unique<EmbreeScene>();
+      restAccel_[m]->build({meshes[m]}, {true});  // robust traversal, as for the moving copy
+    }
     rebuild = true;
   }
   // Refit-quality geometry for the moving meshes, once; later moves only refit.
@@ -95,6 +103,7 @@ void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
     const Affine3d shapeMap = motionMap(own, meshPivot[m]);
     const Affine3d groupMap = g >= 0 ? motionMap(group, groups[size_t(g)].pivot) : Affine3d{};
     const Affine3d map = groupMap * shapeMap, inverse = map.inverse();
+    motion.appliedMap_[m] = map;
     // Velocity fields D = dA/dtheta * A^-1 (shape_motion.h): the group's linear part carries the
     // shape's own derivative; the group's derivative acts on the shape's moved points.
     auto& v = motion.velocity_[m];
@@ -129,6 +138,79 @@ bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   hit = surfaceAt(rh.mesh, rh.tri, rh.b1, rh.b2);
   hit.t = rh.t;
   return true;
+}
+
+PoseSnapshot Scene::pose() const {
+  PoseSnapshot s;
+  s.version = geometryVersion_;
+  for (uint32_t m : motion.movingList_) s.meshes.push_back({m, motion.appliedMap_[m], motion.appliedMap_[m].inverse()});
+  return s;
+}
+
+SurfaceHit Scene::surfaceAt(const PoseSnapshot& pose, uint32_t mesh, uint32_t tri, float b1, float b2) const {
+  const PoseSnapshot::Entry* e = pose.version == geometryVersion_ ? nullptr : pose.find(mesh);
+  if (!e) return surfaceAt(mesh, tri, b1, b2);
+  // The vertices as applyShapeMotion placed them in that pose (the same float operations), then
+  // the surface point as surfaceAt computes it.
+  const TriangleMesh& m = meshes[mesh];
+  const auto& rest = motion.restPositions_[mesh];
+  const auto& restN = motion.restNormals_[mesh];
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  const Vec3 a = e->toPose.point(rest[i0]), b = e->toPose.point(rest[i1]), c = e->toPose.point(rest[i2]);
+  SurfaceHit hit = surfaceAt(mesh, tri, b1, b2);  // uv and indices; positions and normals below
+  const float b0 = 1.f - b1 - b2;
+  hit.p = a * b0 + b * b1 + c * b2;
+  Vec3 n = cross(b - a, c - a);
+  float len = length(n);
+  hit.ng = len > 0.f ? n / len : Vec3(0, 0, 1);
+  if (!restN.empty()) {
+    auto turned = [&](uint32_t i) { return normalize(e->fromPose.transposedVector(restN[i])); };
+    Vec3 ns = turned(i0) * b0 + turned(i1) * b1 + turned(i2) * b2;
+    float l = length(ns);
+    hit.ns = l > 0.f ? ns / l : hit.ng;
+    if (dot(hit.ns, hit.ng) < 0.f) hit.ns = -hit.ns;
+  } else {
+    hit.ns = hit.ng;
+  }
+  return hit;
+}
+
+bool Scene::occludedByStatic(Vec3 o, Vec3 d, float tmax) const {
+  // Walks the hits along the ray in order, stepping past those on moving meshes. The same
+  // triangle reports the same t for the same ray, so starting just past it cannot find it again.
+  float tnear = 0.f;
+  for (int guard = 0; guard < 1024; ++guard) {
+    RayHit h;
+    if (!accel.intersect(o, d, tnear, tmax, h)) return false;
+    if (!motion.moving(h.mesh)) return true;
+    tnear = std::nextafter(h.t, std::numeric_limits<float>::infinity());
+  }
+  return true;  // a pathological stack of moving surfaces: call it blocked
+}
+
+bool Scene::occludedSegment(const PoseSnapshot& pose, Vec3 o, Vec3 target) const {
+  if (pose.version == geometryVersion_) {
+    Vec3 dir;
+    float tmax;
+    return occludedSegment(o, target, dir, tmax);
+  }
+  const Vec3 d = target - o;
+  const float len = length(d);
+  if (!(len > 0.f)) return false;
+  if (occludedByStatic(o, d / len, len)) return true;
+  // In each moving mesh's rest frame the segment is still o + t d, t in [0, 1] (maps are affine).
+  for (const PoseSnapshot::Entry& e : pose.meshes)
+    if (restAccel_[e.mesh]->occluded(e.fromPose.point(o), e.fromPose.vector(d), 0.f, 1.f)) return true;
+  return false;
+}
+
+bool Scene::occludedDirection(const PoseSnapshot& pose, Vec3 o, Vec3 d) const {
+  if (pose.version == geometryVersion_) return occludedDirection(o, d);
+  const float inf = std::numeric_limits<float>::infinity();
+  if (occludedByStatic(o, d, inf)) return true;
+  for (const PoseSnapshot::Entry& e : pose.meshes)
+    if (restAccel_[e.mesh]->occluded(e.fromPose.point(o), e.fromPose.vector(d), 0.f, inf)) return true;
+  return false;
 }
 
 SurfaceHit Scene::surfaceAt(uint32_t mesh, uint32_t tri, float b1, float b2) const {

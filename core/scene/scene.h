@@ -121,6 +121,16 @@ class Scene {
     return accel.occluded(o, d, 0.f, std::numeric_limits<float>::infinity());
   }
 
+  // The geometry as it is now, for tests in that geometry after it moved on (pose(), then the
+  // overloads below taking it). Meshes not in the snapshot (static ones) are as they are now.
+  PoseSnapshot pose() const;
+  SurfaceHit surfaceAt(const PoseSnapshot& pose, uint32_t mesh, uint32_t tri, float b1, float b2) const;
+  // Whether the segment o -> target (or the ray o + t d) was blocked in `pose`: the static meshes
+  // through the current BVH (moving ones skipped), each moving mesh through a BVH of its rest pose
+  // with the ray taken back from `pose`.
+  bool occludedSegment(const PoseSnapshot& pose, Vec3 o, Vec3 target) const;
+  bool occludedDirection(const PoseSnapshot& pose, Vec3 o, Vec3 d) const;
+
   const Distribution1D& lightSelection() const { return lightSelect_; }
   // Whether selection is by power (no light logits), and each light's power under that rule.
   bool selectsByPower() const { return sampling.lightLogits.size() != lights.size(); }
@@ -139,6 +149,8 @@ class Scene {
   std::vector<uint32_t> infiniteLights_;
   std::vector<std::vector<Vec3>> faceNormals_;
   std::vector<bool> dynamicMeshes_;
+  std::vector<std::unique_ptr<EmbreeScene>> restAccel_;  // per moving mesh: its rest pose
+  bool occludedByStatic(Vec3 o, Vec3 d, float tmax) const;
   uint64_t geometryVersion_ = 0;
   bool accelerated_ = false;
 };

@@ -44,6 +44,23 @@ struct RigidMotion {
   bool operator!=(const RigidMotion& o) const { return !(*this == o); }
 };
 
+// The poses of the moving meshes at one geometry version: per moving mesh, the map from its rest
+// pose to that pose and back. Reused ReSTIR samples test their support in the geometry they were
+// created in (Wang et al. 2023, §3.2); motions are affine, so a few maps recall a whole geometry.
+struct PoseSnapshot {
+  uint64_t version = 0;  // Scene::geometryVersion() when taken
+  struct Entry {
+    uint32_t mesh;
+    Affine3d toPose, fromPose;
+  };
+  std::vector<Entry> meshes;  // sorted by mesh
+  const Entry* find(uint32_t mesh) const {
+    for (const Entry& e : meshes)
+      if (e.mesh == mesh) return &e;
+    return nullptr;
+  }
+};
+
 // The motion as a map, and its derivative with respect to component k (per degree for rotations).
 Affine3d motionMap(const RigidMotion& motion, Vec3 pivot);
 Affine3d motionDerivative(const RigidMotion& motion, Vec3 pivot, int component);
@@ -71,6 +88,7 @@ class ShapeMotion {
     return -(g - n * dot(n, g));
   }
   bool moving(uint32_t m) const { return m < moving_.size() && moving_[m]; }
+  bool anyMoving() const { return !movingList_.empty(); }
 
  private:
   friend class Scene;
@@ -79,6 +97,8 @@ class ShapeMotion {
   std::vector<std::array<Affine3d, kFields>> velocity_;
   std::vector<std::vector<Vec3>> restPositions_, restNormals_;  // captured when a mesh first moves
   std::vector<uint8_t> moving_;
+  std::vector<uint32_t> movingList_;  // the moving meshes, ascending
+  std::vector<Affine3d> appliedMap_;  // per mesh: rest pose -> the pose its vertices hold
 };
 
 }  // namespace invr

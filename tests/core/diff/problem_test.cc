@@ -52,10 +52,10 @@ TEST(Problem, JobMistakesNameTheField) {
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "initial": 0.3}]})"), "");
 }
 
-TEST(Problem, ShapeJobsSayWhatTheyCannotDoYet) {
-  // Accepted with pt and ris; restir only with the named shortcut; the rest refused, saying why.
+TEST(Problem, ShapeJobsSayWhatTheyCannotDo) {
+  // Accepted with pt, ris and restir (with or without the shortcut); the rest refused, saying why.
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT"})"), "");
-  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "boundary.multi_view_shortcut");
+  EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}]})"), "");
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"multi_view_shortcut": true}})"), "");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT", "max_depth": 3})"),
                   "optimization.parameters: shape parameters: the interior shape derivative covers direct illumination only");

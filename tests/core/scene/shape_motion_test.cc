@@ -6,6 +6,7 @@
 
 #include "core/diff/parameters.h"
 #include "core/error.h"
+#include "core/math/rng.h"
 #include "test_util.h"
 
 namespace invr {
@@ -164,6 +165,81 @@ TEST(ShapeMotion, WriteMovesVerticesNormalsAndTheBvh) {
   // Back to the rest pose exactly: vertices are recomputed from the rest pose, never accumulated.
   reg.write({0, 0, 0, 0, 0, 0}, *scene);
   for (size_t i = 0; i < restA.size(); ++i) EXPECT_EQ(scene->meshes[0].positions[i], restA[i]);
+}
+
+// A snapshot of the pose recalls the geometry after it moved on: surface points, normals and
+// shadow segments in the snapshot equal those of the scene moved back to that pose (box a, the
+// grouped sphere with its vertex normals, segments through the moving and the static meshes).
+TEST(ShapeMotion, PoseSnapshotRecallsTheGeometryItWasTakenIn) {
+  auto scene = sceneFromJson(kScene);
+  ParameterRegistry reg;
+  reg.add(*scene, "shapes/a/translation");
+  reg.add(*scene, "groups/g/rotation");
+  const std::vector<float> then{0.4f, -0.3f, 0.2f, 10.f, -20.f, 35.f}, now{-0.5f, 0.6f, 0.f, -15.f, 5.f, -40.f};
+  reg.write(then, *scene);
+  const PoseSnapshot pose = scene->pose();
+  ASSERT_EQ(pose.meshes.size(), 3u);  // a, b and s
+  struct Query {
+    uint32_t mesh, tri;
+    float b1, b2;
+  };
+  std::vector<Query> points;
+  std::vector<std::pair<Vec3, Vec3>> segments;
+  Sampler rng(RngKey{21, 0, 0, 0, 0});
+  for (uint32_t m : {0u, 2u, 3u})
+    for (int i = 0; i < 40; ++i) {
+      float u = rng.next1D(), v = rng.next1D();
+      if (u + v > 1.f) u = 1.f - u, v = 1.f - v;
+      points.push_back({m, uint32_t(rng.next1D() * float(scene->meshes[m].triangleCount())) % uint32_t(scene->meshes[m].triangleCount()), u, v});
+    }
+  for (int i = 0; i < 400; ++i) {
+    // Every fourth one ends below the (static) floor.
+    Vec3 a(6.f * rng.next1D() - 3.f, 6.f * rng.next1D() - 3.f, 4.5f), b(6.f * rng.next1D() - 3.f, 6.f * rng.next1D() - 3.f, i % 4 ? -2.9f : -3.5f);
+    segments.push_back({a, b});
+  }
+  auto observe = [&](auto&& surface, auto&& blocked) {
+    std::vector<SurfaceHit> hits;
+    for (const Query& q : points) hits.push_back(surface(q));
+    std::vector<int> occluded;
+    for (auto [a, b] : segments) occluded.push_back(blocked(a, b) ? 1 : 0);
+    return std::make_pair(hits, occluded);
+  };
+  auto expected = observe([&](const Query& q) { return scene->surfaceAt(q.mesh, q.tri, q.b1, q.b2); },
+                          [&](Vec3 a, Vec3 b) {
+                            Vec3 d;
+                            float t;
+                            return scene->occludedSegment(a, b, d, t);
+                          });
+  reg.write(now, *scene);
+  ASSERT_NE(scene->geometryVersion(), pose.version);
+  auto recalled = observe([&](const Query& q) { return scene->surfaceAt(pose, q.mesh, q.tri, q.b1, q.b2); },
+                          [&](Vec3 a, Vec3 b) { return scene->occludedSegment(pose, a, b); });
+  auto moved = observe([&](const Query& q) { return scene->surfaceAt(q.mesh, q.tri, q.b1, q.b2); },
+                       [&](Vec3 a, Vec3 b) {
+                         Vec3 d;
+                         float t;
+                         return scene->occludedSegment(a, b, d, t);
+                       });
+  int blockedThen = 0, changed = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const SurfaceHit &e = expected.first[i], &r = recalled.first[i];
+    EXPECT_EQ(e.p, r.p) << "point " << i;
+    EXPECT_EQ(e.ng, r.ng) << "point " << i;
+    EXPECT_NEAR(length(e.ns - r.ns), 0.f, 1e-6f) << "point " << i;
+  }
+  for (size_t i = 0; i < segments.size(); ++i) {
+    EXPECT_EQ(expected.second[i], recalled.second[i]) << "segment " << i;
+    blockedThen += expected.second[i];
+    changed += expected.second[i] != moved.second[i];
+  }
+  // The segments exercise both answers, and the motion changed some of them.
+  EXPECT_GT(blockedThen, 20);
+  EXPECT_LT(blockedThen, 380);
+  EXPECT_GT(changed, 10);
+  // The current pose's snapshot is the current geometry.
+  const PoseSnapshot here = scene->pose();
+  for (size_t i = 0; i < segments.size(); ++i)
+    EXPECT_EQ(scene->occludedSegment(here, segments[i].first, segments[i].second), moved.second[i] == 1);
 }
 
 TEST(ShapeMotion, PivotsDefaultToBoundsCentresAndCanBeSet) {
