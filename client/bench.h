@@ -17,6 +17,7 @@ struct GradientsArgs {
   double mCap = 0;
   double radiusPixels = 0;
   int targetSpp = 256;
+  std::vector<std::string> params;  // --param NAME[=V[,V,V]]: replaces the zoo job's parameters
   bool json = false;
 };
 BenchReport benchGradients(const GradientsArgs& args);

@@ -8,6 +8,7 @@
 
 #include "client/bench.h"
 #include "client/commands.h"
+#include "client/job_argument.h"
 #include "core/diff/problem.h"
 #include "core/diff/zoo_jobs.h"
 #include "core/optim/equal_time.h"
@@ -27,8 +28,17 @@ struct Setup {
   std::vector<Image> targets;
 };
 
-Setup makeSetup(const std::string& scene, int targetSpp) {
-  auto job = zooJob(scene);
+// The zoo scene's job; --param replaces its parameters (names and starting values), as for `run`.
+v1::JobSpec benchJob(const std::string& scene, const std::vector<std::string>& params) {
+  if (params.empty()) return zooJob(scene);
+  AssetResolver assets;
+  SceneArgs args;
+  args.params = params;
+  return optimizationJobFromArgument(scene, assets, args);
+}
+
+Setup makeSetup(const std::string& scene, int targetSpp, const std::vector<std::string>& params = {}) {
+  auto job = benchJob(scene, params);
   job.mutable_optimization()->set_target_spp(targetSpp);
   Setup s{buildProblem(job), {}};
   s.targets = renderTargets(s.problem);
@@ -79,7 +89,7 @@ double relativeSquaredError(const std::vector<double>& g, const std::vector<doub
 }  // namespace
 
 BenchReport benchGradients(const GradientsArgs& a) {
-  Setup s = makeSetup(a.scene, a.targetSpp);
+  Setup s = makeSetup(a.scene, a.targetSpp, a.params);
   if (a.neighbours > 0) s.problem.gradient.restir.neighbours = a.neighbours;
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
   if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
@@ -311,12 +321,14 @@ struct ReconstructArgs {
   std::string csv = "reconstruct.csv";
   std::vector<std::string> pixelSamplers;  // compare these pixel samplers instead of light sampling
   int pixelSamples = 0;
+  std::vector<std::string> params;  // --param: replaces the zoo job's parameters
+  int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
   bool json = false;
 };
 
 void runBenchReconstruct(const ReconstructArgs& a) {
   if (!(a.seconds > 0)) throw InputError("--seconds must be positive");
-  auto job = zooJob(a.scene);
+  auto job = benchJob(a.scene, a.params);
   job.mutable_optimization()->set_target_spp(256);
   if (!a.loss.empty()) job.mutable_optimization()->set_loss(a.loss);
   if (!a.optimizer.empty()) job.mutable_optimization()->set_optimizer(a.optimizer);
@@ -348,17 +360,67 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       variants.push_back({name, o});
     }
   }
+  // Rotation components (shape and group rotations, degrees): their final error is reported in
+  // degrees, the RMSE over those components.
+  std::vector<uint32_t> rotation;
+  for (const ParameterSlot& sl : s.problem.params.slots())
+    if (sl.kind == ParamKind::ShapeRotation)
+      for (uint32_t i = 0; i < sl.size; ++i) rotation.push_back(sl.offset + i);
+  auto degreesOff = [&](const std::vector<float>& theta) {
+    double sum = 0;
+    for (uint32_t k : rotation) sum += double(theta[k] - s.problem.truth[k]) * double(theta[k] - s.problem.truth[k]);
+    return std::sqrt(sum / double(rotation.size()));
+  };
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  };
+  if (a.seeds < 1) throw InputError("--seeds must be at least 1");
+  // Each method runs once per seed (the job's seed, then the next ones); the figures are medians.
   std::vector<double> errors;
+  BenchReport::Json methods = BenchReport::Json::object();
+  const uint64_t firstSeed = s.problem.seed;
   for (const Variant& v : variants) {
-    EqualTimeOptions budget;
-    budget.seconds = a.seconds;
-    EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
-                                    [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, v.name, pt); });
-    errors.push_back(run.history.back().parameterError);
-    rep.number("steps_" + v.name, run.history.back().step);
-    rep.number("image_error_" + v.name, run.history.back().imageError);
-    if (!run.failure.empty()) rep.text("failure_" + v.name, run.failure);
+    std::vector<double> finalErrors, finalDegrees;
+    for (int k = 0; k < a.seeds; ++k) {
+      s.problem.seed = firstSeed + uint64_t(k);
+      EqualTimeOptions budget;
+      budget.seconds = a.seconds;
+      const std::string label = a.seeds > 1 ? v.name + "_seed" + std::to_string(k) : v.name;
+      EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
+                                      [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, label, pt); });
+      finalErrors.push_back(run.history.back().parameterError);
+      if (!rotation.empty()) finalDegrees.push_back(degreesOff(run.theta));
+      if (k == 0) {
+        rep.number("steps_" + v.name, run.history.back().step);
+        rep.number("image_error_" + v.name, run.history.back().imageError);
+      }
+      if (!run.failure.empty()) rep.text("failure_" + label, run.failure);
+    }
+    s.problem.seed = firstSeed;
+    errors.push_back(median(finalErrors));
+    BenchReport::Json m = BenchReport::Json::object();
+    m["median_final_param_error"] = errors.back();
+    m["final_param_error"] = finalErrors;
+    if (!rotation.empty()) {
+      m["median_final_error_degrees"] = median(finalDegrees);
+      m["final_error_degrees"] = finalDegrees;
+    }
+    methods[v.name] = std::move(m);
   }
+  rep.number("seeds", a.seeds);
+  if (!rotation.empty()) {
+    std::string shown;
+    BenchReport::Json degrees = BenchReport::Json::object();
+    for (size_t i = 0; i < variants.size(); ++i) {
+      const double d = methods[variants[i].name]["median_final_error_degrees"].get<double>();
+      degrees[variants[i].name] = d;
+      shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(d);
+    }
+    rep.value("median_final_error_degrees", std::move(degrees), shown + " (median over seeds of the final rotation RMSE)");
+  }
+  rep.value("methods", std::move(methods), "per method: final parameter errors per seed and their median");
   BenchReport::Json paramError = BenchReport::Json::object();
   std::string shown;
   for (size_t i = 0; i < variants.size(); ++i) {
@@ -386,7 +448,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
 void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   auto ga = std::make_shared<GradientsArgs>();
   auto* g = bench.add_subcommand("gradients", "Equal-time gradient error (relative MSE vs a high-sample reference): PT, RIS, ReSTIR");
-  g->add_option("--scene", ga->scene, "zoo scene (ajar or oxalis)")->capture_default_str();
+  g->add_option("--scene", ga->scene, "zoo scene (ajar or oxalis; knot or tree with --param for shapes)")->capture_default_str();
   g->add_option("--reps", ga->reps, "gradient evaluations averaged per method")->capture_default_str();
   g->add_option("--restir-chains", ga->restirChains, "independent ReSTIR chains the reps are split over (for the standard error)")
       ->capture_default_str();
@@ -396,6 +458,10 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   g->add_option("--neighbours", ga->neighbours, "ReSTIR neighbours (default: the scene job's)");
   g->add_option("--m-cap", ga->mCap, "ReSTIR confidence cap (default: the scene job's, 2 x M)");
   g->add_option("--radius-pixels", ga->radiusPixels, "ReSTIR neighbour radius in pixel footprints (default: the job's)");
+  g->add_option("--param", ga->params,
+                 "NAME[=V[,V,V]]: measure this parameter's gradient instead of the job's, at the values given (e.g. "
+                 "shapes/knot/translation=0.05,0,0; repeatable)")
+      ->allow_extra_args(false);
   g->add_flag("--json", ga->json, "print one JSON object");
   g->callback([ga, &exitCode] { benchGradients(*ga).print(ga->json); exitCode = 0; });
 
@@ -417,6 +483,10 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
       ->delimiter(',');
   rc->add_option("--pixel-samples", ra->pixelSamples, "pixel samples per view for the mini-batch samplers");
   rc->add_option("--csv", ra->csv, "convergence data (method, step, seconds, loss, param_error)")->capture_default_str();
+  rc->add_option("--param", ra->params, "NAME[=V[,V,V]]: recover this parameter instead of the job's, from the values given (repeatable)")
+      ->allow_extra_args(false);
+  rc->add_option("--seeds", ra->seeds, "runs per method, with the job's seed and the next ones; final errors are medians")
+      ->capture_default_str();
   rc->add_flag("--json", ra->json, "print one JSON object");
   rc->callback([ra, &exitCode] { runBenchReconstruct(*ra); exitCode = 0; });
 }

@@ -247,6 +247,9 @@ v1::Scene tree() {
   m.diffuse("board", 0.4, 0.4, 0.4);
   m.diffuse("emitter", 0.8, 0.8, 0.8);
   m.quad("ground", "ground", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  // The tree's parts are flat-shaded (face_normals) and form the group "tree" (pivot: the foot of
+  // the trunk), so that shape jobs can turn it (groups/tree/rotation): moving smooth-shaded meshes
+  // are refused (docs/differentiable-rendering.md).
   auto* trunk = m.shape("trunk", "bark");
   trunk->mutable_cylinder()->set_capped(true);
   SceneMaker::place(trunk, {0.06, 0.06, 0.5}, {-90, 0, 0}, {0, 0.5, 0});
@@ -262,6 +265,14 @@ v1::Scene tree() {
     c->mutable_sphere()->set_rings(24);
     SceneMaker::place(c, {crowns[i][3], crowns[i][3], crowns[i][3]}, {0, 0, 0}, {crowns[i][0], crowns[i][1], crowns[i][2]});
   }
+  auto* tree = m.s.add_groups();
+  tree->set_name("tree");
+  for (auto& shape : *m.s.mutable_shapes())
+    if (shape.material() == "bark" || shape.material() == "leaves") {
+      shape.set_face_normals(true);
+      tree->add_shapes(shape.name());
+    }
+  tree->mutable_pivot()->set_y(0);
   // A small bright light casts the tree's shadow; a large light is mostly hidden behind a board.
   m.quad("small_light", "emitter", {0.08, 0.08, 1}, kFaceDown, {0.9, 2.6, 0.6});
   m.areaLight("small", "small_light", 300, 290, 270);
@@ -281,6 +292,7 @@ v1::Scene knot() {
   m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
   auto* k = m.shape("knot", "knot");
   k->mutable_torus_knot();
+  k->set_face_normals(true);  // flat-shaded, so shape jobs can move it (shapes/knot/translation)
   SceneMaker::place(k, {0.6, 0.6, 0.6}, {0, 0, 0}, {0, 0.75, 0});
   m.spot("key", {1.2, 2.8, 1.2}, {0, 0.5, 0}, 30.0, 25, 18);
   m.point("fill_a", {-1.5, 1.0, 1.5}, 0.4);
