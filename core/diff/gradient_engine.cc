@@ -70,7 +70,7 @@ void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const Gr
       throw InputError(what + "shape '" + scene.meshNames[m] +
                        "' has interpolated vertex normals: next to its silhouette the shading normal turns away from the camera "
                        "inside faces and the radiance jumps there, a moving discontinuity no boundary estimator samples yet; "
-                       "use a flat-shaded mesh (no vertex normals)");
+                       "flat-shade it (the shape's face_normals: true)");
   }
 }
 
