@@ -39,7 +39,8 @@ struct alignas(64) StoredReservoir {
   // The view whose camera saw it: its BSDF target looks towards that camera's eye.
   uint16_t view = 0;
   // Shadow rays from this point to delta lights 0..7 traced when it was created (bit i: light i
-  // known, and visible). With unmoved geometry they still hold, so support tests need no new ray.
+  // known, and visible). They describe the geometry it was created in, which is where support tests
+  // ask (§3.2), so those need no new ray.
   uint8_t deltaKnown = 0, deltaVisible = 0;
   // The geometry it was created in (ReservoirStore::poseOf; set from createdPose() of the store
   // the pass reused): the support test of a reuse evaluates its target there (§3.2).
