@@ -323,6 +323,7 @@ struct ReconstructArgs {
   int pixelSamples = 0;
   std::vector<std::string> params;  // --param: replaces the zoo job's parameters
   int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
+  std::vector<std::string> methods{"pt", "ris", "restir"};  // also: forward_only
   bool json = false;
 };
 
@@ -351,7 +352,16 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   };
   std::vector<Variant> variants;
   if (a.pixelSamplers.empty()) {
-    for (GradientMethod m : kMethods) variants.push_back({gradientMethodName(m), optionsFor(s.problem, m, 1)});
+    for (const std::string& name : a.methods) {
+      if (name == "forward_only") {
+        // ReSTIR in the primal pass only; the derivative pass samples with plain RIS.
+        GradientOptions o = optionsFor(s.problem, GradientMethod::Restir, 1);
+        o.forwardOnly = true;
+        variants.push_back({name, o});
+      } else {
+        variants.push_back({name, optionsFor(s.problem, gradientMethodFromName(name), 1)});
+      }
+    }
   } else {
     for (const auto& name : a.pixelSamplers) {
       GradientOptions o = s.problem.gradient;
@@ -433,10 +443,10 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       if (variants[i].name == n) return int(i);
     return -1;
   };
-  if (indexOf("pt") >= 0 && indexOf("restir") >= 0) {
-    rep.number("ratio_pt_over_restir", errors[size_t(indexOf("pt"))] / errors[size_t(indexOf("restir"))], "(target >= 3)");
-    rep.number("ratio_ris_over_restir", errors[size_t(indexOf("ris"))] / errors[size_t(indexOf("restir"))]);
-  }
+  for (const char* baseline : {"pt", "ris", "forward_only"})
+    if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
+      rep.number(std::string("ratio_") + baseline + "_over_restir", errors[size_t(indexOf(baseline))] / errors[size_t(indexOf("restir"))],
+                 std::string(baseline) == "pt" ? "(target >= 3)" : "");
   if (indexOf("uniform") >= 0 && indexOf("adaptive") >= 0)
     rep.number("ratio_uniform_over_adaptive", errors[size_t(indexOf("uniform"))] / errors[size_t(indexOf("adaptive"))]);
   rep.text("csv", a.csv);
@@ -485,6 +495,10 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   rc->add_option("--csv", ra->csv, "convergence data (method, step, seconds, loss, param_error)")->capture_default_str();
   rc->add_option("--param", ra->params, "NAME[=V[,V,V]]: recover this parameter instead of the job's, from the values given (repeatable)")
       ->allow_extra_args(false);
+  rc->add_option("--methods", ra->methods, "light-sampling methods to compare: pt, ris, restir, forward_only (ReSTIR in the primal pass only)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"pt", "ris", "restir", "forward_only"}))
+      ->capture_default_str();
   rc->add_option("--seeds", ra->seeds, "runs per method, with the job's seed and the next ones; final errors are medians")
       ->capture_default_str();
   rc->add_flag("--json", ra->json, "print one JSON object");

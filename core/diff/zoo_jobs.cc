@@ -63,10 +63,25 @@ v1::JobSpec zooJob(const std::string& name) {
     o->set_views_per_step(4);
     o->set_steps(200);
   } else if (name == "tree") {
-    param(o, "lights/small/intensity", 150, 5);
-    param(o, "lights/large/intensity", 3, 0.1);
+    // Shape (Wang et al. 2023, Fig. 10): the tree's rotation, from 15 degrees off about the
+    // vertical, read mostly from its shadow.
+    auto* p = o->add_parameters();
+    p->set_name("groups/tree/rotation");
+    for (double v : {0.0, 15.0, 0.0}) p->add_initial_values(v);
+    p->set_learning_rate(0.5);
+    o->set_loss("l2");
+    o->set_steps(150);
+    o->set_learning_rate_half_life(75);
   } else if (name == "knot") {
-    param(o, "materials/knot/albedo", 0.5, 0.02);
+    // Shape (Wang et al. 2023, Figs. 6-7): the knot's translation under a bright spot and dim
+    // point fills (delta lights: the point/spot shadow-border estimator).
+    auto* p = o->add_parameters();
+    p->set_name("shapes/knot/translation");
+    for (double v : {0.06, -0.04, 0.05}) p->add_initial_values(v);
+    p->set_learning_rate(0.005);
+    o->set_loss("l2");
+    o->set_steps(150);
+    o->set_learning_rate_half_life(75);
   } else if (name == "spot") {
     // Yan et al. 2024, Fig. 8: per-pixel probabilities of choosing the spot or the ambient light,
     // from 0.5 everywhere, against the variance of a 1-spp render (the mean does not depend on

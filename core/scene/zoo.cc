@@ -279,7 +279,10 @@ v1::Scene tree() {
   m.quad("large_light", "emitter", {0.8, 0.8, 1}, kFaceDown, {-1.2, 2.8, -1.0});
   m.areaLight("large", "large_light", 6, 6, 7);
   m.quad("board", "board", {1.1, 1.1, 1}, kFaceUp, {-1.1, 2.3, -0.9});
-  m.view("front", {0.3, 1.3, 3.2}, {-0.2, 0.5, 0}, 45);
+  // Aimed at the ground behind the tree, where the small light throws its shadow (the crown's
+  // falls around (-0.8, 0, -0.55)), with one crown and the trunk at the right edge: its rotation
+  // is read mostly from the shadow (Wang et al. 2023, Fig. 10).
+  m.view("shadow", {-1.5, 2.6, 1.0}, {-0.85, 0.0, -0.6}, 40);
   m.film(256, 192);
   return m.s;
 }
@@ -406,8 +409,8 @@ const std::vector<ZooDef>& zoo() {
       {{"ajar", "painting in a room lit through a nearly closed door plus a dim fill"}, ajar},
       {{"mirror", "three diffuse objects in front of a glossy mirror"}, mirror},
       {{"backlit", "textured sphere under an environment lit from behind, 16 views"}, backlit},
-      {{"tree", "tree-like object, a small light and an occluded large light"}, tree},
-      {{"knot", "torus knot under a bright spot and dim fills"}, knot},
+      {{"tree", "tree-like object and its shadow, a small light and an occluded large light; its rotation (shape parameters)"}, tree},
+      {{"knot", "torus knot under a bright spot and dim fills; its translation (shape parameters)"}, knot},
       {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},
       {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},
       {{"roulette", "closed room lit indirectly, 8 bounces; Russian-roulette survival per bounce"}, roulette},

@@ -47,7 +47,11 @@ TEST(EqualTime, ADivergingMethodStopsWithTheReasonAndItsLastGoodParameters) {
   // Light intensities have no physical upper bound, so an absurd rate walks them past 1e30.
   auto job = zooJob("tree");
   job.mutable_optimization()->set_target_spp(2);
-  for (auto& prm : *job.mutable_optimization()->mutable_parameters()) prm.set_learning_rate(1e38);
+  job.mutable_optimization()->clear_parameters();
+  auto* light = job.mutable_optimization()->add_parameters();
+  light->set_name("lights/small/intensity");
+  light->set_initial(150);
+  light->set_learning_rate(1e38);
   Problem p = buildProblem(job);
   auto targets = renderTargets(p);
   EqualTimeOptions budget;

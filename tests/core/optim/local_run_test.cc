@@ -51,7 +51,11 @@ TEST(LocalRun, DivergenceIsReportedNotReturned) {
   auto* o = job.mutable_optimization();
   o->set_target_spp(4);
   o->set_steps(5);
-  o->mutable_parameters(0)->set_learning_rate(3e38);  // intensity is unbounded above: overflows
+  o->clear_parameters();
+  auto* light = o->add_parameters();
+  light->set_name("lights/small/intensity");
+  light->set_initial(150);
+  light->set_learning_rate(3e38);  // intensity is unbounded above: overflows
   Problem p = buildProblem(job);
   try {
     runLocally(p);
