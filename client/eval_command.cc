@@ -71,7 +71,8 @@ constexpr PixelSampler kAll = PixelSampler::All, kUniform = PixelSampler::Unifor
                        kAdaptive = PixelSampler::Adaptive;
 
 // Which comparisons are meaningful where: light sampling matters for direct illumination with
-// many lights or hard visibility (cornell, oxalis, ajar, backlit); pixel sampling for the
+// many lights or hard visibility (cornell, oxalis, ajar, backlit, and the shape jobs tree and
+// knot, whose gradients also carry boundary terms); pixel sampling for the
 // multi-bounce mirror (path replay, so method pt) and the multi-view backlit. ReSTIR with pixel
 // mini-batches is our combination, which neither paper ran.
 Suite makeSuite(bool quick) {
@@ -99,7 +100,11 @@ Suite makeSuite(bool quick) {
                 {"oxalis", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}, {kRestir, kUniform}, {kRestir, kAdaptive}}},
                 {"ajar", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}},
                 {"mirror", 40, {{kPt, kAll}, {kPt, kUniform}, {kPt, kLossGrad}, {kPt, kAdaptive}}},
-                {"backlit", 90, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}, {kRestir, kUniform}, {kRestir, kAdaptive}}}};
+                {"backlit", 90, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}, {kRestir, kUniform}, {kRestir, kAdaptive}}},
+                // Shape parameters (Wang et al. 2023, §5-7): the tree's rotation from its shadow
+                // under area lights, the knot's translation under spot and point lights.
+                {"tree", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}},
+                {"knot", 30, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}}};
     s.targetSpp = 256;
     s.imageErrorSpp = 32;
     s.imageErrorViews = 2;
