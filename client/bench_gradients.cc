@@ -458,7 +458,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
 void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   auto ga = std::make_shared<GradientsArgs>();
   auto* g = bench.add_subcommand("gradients", "Equal-time gradient error (relative MSE vs a high-sample reference): PT, RIS, ReSTIR");
-  g->add_option("--scene", ga->scene, "zoo scene (ajar or oxalis; knot or tree with --param for shapes)")->capture_default_str();
+  g->add_option("--scene", ga->scene, "zoo scene (ajar or oxalis; tree, knot or pose: shape gradients)")->capture_default_str();
   g->add_option("--reps", ga->reps, "gradient evaluations averaged per method")->capture_default_str();
   g->add_option("--restir-chains", ga->restirChains, "independent ReSTIR chains the reps are split over (for the standard error)")
       ->capture_default_str();
