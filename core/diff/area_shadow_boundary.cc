@@ -9,40 +9,6 @@
 
 namespace invr {
 
-namespace {
-
-float emittedPower(const Light& l) { return l.kind == LightKind::Area ? luminance(l.radiance) * l.scale * l.area : 0.f; }
-
-struct LightPoint {
-  uint32_t light;
-  Vec3 y, n;
-  double pdf;  // area density of y (light choice included)
-};
-
-// What the point source at y (a point of area light l) adds to the film sample through (fx, fy):
-// f |cos_x| Le(y) |cos_y| / r^2, visibility included.
-Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays) {
-  const Vec3 d = cam.direction(fx, fy, scene.width, scene.height);
-  SurfaceHit hit;
-  ++rays.camera;
-  if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
-  const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
-  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
-  sp.wo = sp.frame.toLocal(-d);
-  const Vec3 r = lp.y - hit.p;
-  const float dist2 = lengthSquared(r);
-  if (!(dist2 > 0.f)) return Rgb(0.f);
-  const Vec3 wi = r / std::sqrt(dist2);
-  const Rgb f = bsdfTowards(sp, wi), Le = areaEmission(l, lp.n, -wi);
-  if (isBlack(f) || isBlack(Le)) return Rgb(0.f);
-  Vec3 dir;
-  float tmax;
-  ++rays.shadow;
-  if (scene.occludedSegment(Scene::shadowOrigin(hit.p, hit.ng, wi), offsetOrigin(lp.y, lp.n, -wi), dir, tmax)) return Rgb(0.f);
-  return f * Le * (std::abs(dot(lp.n, wi)) / dist2);
-}
-
-}  // namespace
 
 AreaShadowBoundary::AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
     : scene_(scene), params_(params), topology_(topology) {}

@@ -6,8 +6,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 
 #include "core/diff/area_shadow_boundary.h"
+#include "core/diff/edge_reservoir_boundary.h"
 #include "core/diff/delta_shadow_boundary.h"
 #include "core/diff/pass_driver.h"
 #include "core/diff/primary_boundary.h"
@@ -282,6 +284,16 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       st.rays += b.rays;
       st.drops.boundary += b.dropped;
     };
+    const bool edgeFirst = bo.secondary && bo.areaSampling == BoundaryOptions::AreaSampling::EdgeFirst && EdgeReservoirBoundary::applies(scene_);
+    std::optional<EdgeReservoirBoundary> edgeSampler;
+    std::vector<EdgeReservoir> createdEdges;
+    if (edgeFirst) {
+      EdgeSamplingSettings es;
+      es.candidates = opt_.method == GradientMethod::Pt ? 1 : opt_.restir.candidates;
+      es.reuse = restirDerivative;
+      es.edgeImportance = restirDerivative && bo.edgeImportance;
+      edgeSampler.emplace(scene_, params_, topology_, session.edges, es);
+    }
     for (size_t k = 0; k < req.views.size(); ++k) {
       checkCancel();
       const int view = req.views[k];
@@ -295,10 +307,22 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
         count(DeltaShadowBoundary(scene_, params_, topology_)
                   .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, Stream::DeltaShadowBoundary), req.step, *scratch_,
                        out.gradient, req.cancel));
-      if (bo.secondary && AreaShadowBoundary::applies(scene_))
+      if (edgeSampler)
+        count(edgeSampler->run(view, adjoints[k], samples, streamSeed(req.seed, Stream::AreaShadowBoundary), req.step, *scratch_,
+                               out.gradient, createdEdges, req.cancel));
+      else if (bo.secondary && AreaShadowBoundary::applies(scene_))
         count(AreaShadowBoundary(scene_, params_, topology_)
                   .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, Stream::AreaShadowBoundary), req.step, *scratch_,
                        out.gradient, req.cancel));
+    }
+    if (edgeSampler && restirDerivative) {
+      // Alg. 8: the previous step's reservoirs whose p1 no view of this batch sees stay, unless the
+      // batch holds every view the session serves (then no later step could want them more).
+      if (opt_.preserveOccluded && !req.allSessionViews) st.edgeReservoirsPreserved = edgeSampler->preserve(req.views, createdEdges, st.rays);
+      edgeSampler.reset();
+      session.edges.items = std::move(createdEdges);
+      session.edges.index({});
+      st.edgeReservoirs = session.edges.items.size();
     }
   }
   st.secondsBoundary = secondsSince(t0);

@@ -21,6 +21,7 @@
 
 #include "core/diff/gradient_options.h"
 #include "core/geometry/edge_topology.h"
+#include "core/restir/edge_reservoir.h"
 #include "core/diff/parameters.h"
 #include "core/diff/sample_drops.h"
 
@@ -69,6 +70,7 @@ struct GradientStats {
   double secondsBoundary = 0;
   uint64_t boundaryEdges = 0;    // candidate edges the passes sampled from, summed over views and terms
   uint64_t boundarySamples = 0;
+  size_t edgeReservoirs = 0, edgeReservoirsPreserved = 0;  // kept for the next step (Alg. 6), of which by Alg. 8
   RayStats rays;
 };
 
@@ -82,6 +84,7 @@ struct GradientResult {
 // Per-job state that survives between steps (the worker's session cache): reservoir chains.
 struct EngineSession {
   ReservoirStore primal, derivative;
+  EdgeReservoirSet edges;  // shape jobs with area lights: the secondary boundary's reservoirs (Alg. 6)
   std::map<int, PixelMap> pixelMaps;  // per view: the pixel-sampling probabilities
 };
 

@@ -43,6 +43,11 @@ struct BoundaryOptions {
   // shortcut, §3.2), which is biased once geometry moves. Default: in the geometry each sample was
   // created in (unbiased; the reservoir store keeps the moving meshes' poses for that).
   bool multiViewShortcut = false;
+  // Area lights' shadow borders: sampled edge point first with the light point by RIS (Alg. 6;
+  // restir reuses edge reservoirs across steps) or light points first (area_shadow_boundary.h).
+  enum class AreaSampling { EdgeFirst, LightPoints };
+  AreaSampling areaSampling = AreaSampling::EdgeFirst;
+  bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
   int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
 };
 

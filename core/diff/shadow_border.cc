@@ -5,6 +5,7 @@
 
 #include "core/diff/film_projection.h"
 #include "core/diff/primary_boundary.h"
+#include "core/render/direct_light.h"
 
 namespace invr {
 
@@ -79,6 +80,29 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
   const float c = dot(g, bp.toE) / bp.denom;
   params.addPointGradient(scene, se.mesh, bp.e, (g - nr * c) * bp.s, grad);
   params.addPointGradient(scene, bp.hit.mesh, bp.hit.p, nr * c, grad);
+}
+
+float emittedPower(const Light& l) { return l.kind == LightKind::Area ? luminance(l.radiance) * l.scale * l.area : 0.f; }
+
+Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays) {
+  const Vec3 d = cam.direction(fx, fy, scene.width, scene.height);
+  SurfaceHit hit;
+  ++rays.camera;
+  if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
+  const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
+  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
+  sp.wo = sp.frame.toLocal(-d);
+  const Vec3 r = lp.y - hit.p;
+  const float dist2 = lengthSquared(r);
+  if (!(dist2 > 0.f)) return Rgb(0.f);
+  const Vec3 wi = r / std::sqrt(dist2);
+  const Rgb f = bsdfTowards(sp, wi), Le = areaEmission(l, lp.n, -wi);
+  if (isBlack(f) || isBlack(Le)) return Rgb(0.f);
+  Vec3 dir;
+  float tmax;
+  ++rays.shadow;
+  if (scene.occludedSegment(Scene::shadowOrigin(hit.p, hit.ng, wi), offsetOrigin(lp.y, lp.n, -wi), dir, tmax)) return Rgb(0.f);
+  return f * Le * (std::abs(dot(lp.n, wi)) / dist2);
 }
 
 }  // namespace invr

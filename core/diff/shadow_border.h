@@ -15,6 +15,7 @@
 #include "core/diff/gradient_sink.h"
 #include "core/diff/parameters.h"
 #include "core/geometry/edge_topology.h"
+#include "core/render/render_options.h"
 #include "core/scene/scene.h"
 
 namespace invr {
@@ -55,5 +56,18 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
 // the sample's weight: adjoint . ΔL * speed / pdf.
 void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
                              double w, PathGradient& grad);
+
+// Area lights as integrals of point sources (area_shadow_boundary.h, edge_reservoir_boundary.h).
+float emittedPower(const Light& l);  // luminance of the power an area light emits; 0 for other lights
+
+struct LightPoint {
+  uint32_t light;
+  Vec3 y, n;
+  double pdf;  // area density of y (light choice included)
+};
+
+// What the point source at y (a point of area light l, intensity Le(y) |cos_y| dA) adds to the
+// film sample through (fx, fy): f |cos_x| Le(y) |cos_y| / r^2, visibility included.
+Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays);
 
 }  // namespace invr

@@ -116,8 +116,8 @@ struct ShapeCase {
       r.views = {0};
       r.seed = 5000 + uint64_t(i);
       for (int b = 0; b < burnIn; ++b) {
+        // Whole steps (not render-only burn-in), so the boundary terms' edge reservoirs are made too.
         GradientRequest rb = r;
-        rb.renderOnly = true;
         rb.step = uint64_t(b);
         auto before = theta;
         for (size_t j = 0; j < approach.size(); ++j) before[j] -= float(burnIn - b) * approach[j];

@@ -1,0 +1,272 @@
+#include "core/diff/edge_reservoir_boundary.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/diff/film_projection.h"
+#include "core/diff/shadow_border.h"
+#include "core/math/sampling.h"
+
+namespace invr {
+
+namespace {
+
+float rayOffset(Vec3 p) { return 1e-4f * (1.f + maxComponent(vmax(p, -p))); }
+
+// The support of the target: the edge is a silhouette from y and y's light emits towards p^B.
+// Made from p^B and face normals alone, so a reused reservoir answers it where it was created.
+bool inSupport(const Light& l, Vec3 y, Vec3 ny, Vec3 pB, Vec3 nA, Vec3 nB, bool single) {
+  const Vec3 toY = y - pB;
+  if (!single && (dot(nA, toY) > 0.f) == (dot(nB, toY) > 0.f)) return false;
+  return !isBlack(areaEmission(l, ny, -toY));
+}
+
+struct Candidate {
+  uint32_t light = 0, tri = 0;
+  float b0 = 0.f, b1 = 0.f;
+  Vec3 y, n;
+};
+
+}  // namespace
+
+bool EdgeReservoirBoundary::applies(const Scene& scene) {
+  for (const Light& l : scene.lights)
+    if (emittedPower(l) > 0.f) return true;
+  return false;
+}
+
+EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
+                                             EdgeReservoirSet& previous, const EdgeSamplingSettings& settings)
+    : scene_(scene), params_(params), topology_(topology), previous_(previous), settings_(settings) {
+  settings_.candidates = std::max(1, settings_.candidates);
+  std::vector<float> power(scene.lights.size());
+  for (size_t i = 0; i < power.size(); ++i) power[i] = emittedPower(scene.lights[i]);
+  if (!power.empty() && *std::max_element(power.begin(), power.end()) > 0.f) pickLight_ = Distribution1D(power);
+
+  std::vector<float> base;
+  firstEdge_.assign(topology.size() + 1, 0);
+  for (uint32_t m = 0; m < topology.size() && m < scene.meshes.size(); ++m) {
+    firstEdge_[m] = uint32_t(edges_.size());
+    const TriangleMesh& mesh = scene.meshes[m];
+    const std::vector<MeshEdge>& list = topology[m].edges();
+    for (uint32_t e = 0; e < list.size(); ++e) {
+      const float len = length(mesh.positions[list[e].v1] - mesh.positions[list[e].v0]);
+      edges_.push_back({m, e});
+      base.push_back(std::isfinite(len) ? len * (params.moves(m) ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
+    }
+  }
+  for (size_t m = std::min(topology.size(), scene.meshes.size()); m < firstEdge_.size(); ++m) firstEdge_[m] = uint32_t(edges_.size());
+
+  // Re-place the previous reservoirs on their edges (the index wants where they are now).
+  std::vector<Vec3> where(previous.items.size());
+  for (size_t i = 0; i < where.size(); ++i) {
+    const EdgeReservoir& r = previous.items[i];
+    const MeshEdge& e = topology[r.mesh].edges()[r.edge];
+    const Vec3 a = scene.meshes[r.mesh].positions[e.v0], b = scene.meshes[r.mesh].positions[e.v1];
+    where[i] = a + (b - a) * r.t;
+  }
+  if (settings_.reuse) previous.index(std::move(where));
+  else previous.index({});
+  const Vec3 diag = scene.boundsMax - scene.boundsMin;
+  radius_ = kNeighbourRadius * length(diag);
+
+  if (settings_.reuse && settings_.edgeImportance && !previous.items.empty()) {
+    std::vector<double> sum(edges_.size(), 0.0);
+    std::vector<uint32_t> count(edges_.size(), 0);
+    double total = 0.0;
+    for (const EdgeReservoir& r : previous.items) {
+      const double mean = r.M > 0.f ? r.wSum / double(r.M) : 0.0;
+      const size_t k = firstEdge_[r.mesh] + r.edge;
+      sum[k] += mean;
+      ++count[k];
+      total += mean;
+    }
+    const double eps = double(kEdgeImportanceFloor) * total / double(previous.items.size());
+    if (eps > 0.0)
+      for (size_t k = 0; k < base.size(); ++k) base[k] = float(double(base[k]) * ((count[k] ? sum[k] / count[k] : 0.0) + eps));
+  }
+  if (!base.empty() && *std::max_element(base.begin(), base.end()) > 0.f) pickEdge_ = Distribution1D(base);
+}
+
+BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int samples, uint64_t stream, uint64_t step,
+                                             GradientScratchPool& scratchPool, std::vector<double>& gradient,
+                                             std::vector<EdgeReservoir>& created, const std::atomic<bool>* cancel) const {
+  BoundaryPassStats st;
+  if (samples <= 0 || pickEdge_.size() == 0 || pickLight_.size() == 0) return st;
+  st.candidateEdges = edges_.size();
+  const Camera& cam = scene_.cameras[size_t(view)];
+  const int W = scene_.width, H = scene_.height;
+  // The target's floor c: a tenth of what a border of typical film speed (5 % of the film's size
+  // per unit t) over a pixel of mean |dL/dI| would give.
+  double meanAdj = 0.0;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const Rgb a = adjoint.rgb(x, y);
+      meanAdj += double(std::abs(a.x) + std::abs(a.y) + std::abs(a.z));
+    }
+  meanAdj /= double(W) * double(H);
+  const float floorC = float(0.1 * meanAdj * 0.05 * double(W + H));
+  if (!(floorC > 0.f)) return st;  // dL/dI is zero: so is this term
+  const size_t base = created.size();
+  created.resize(base + size_t(samples));
+  const float maxM = settings_.maxM * float(settings_.candidates);
+
+  runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
+    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+    EdgeReservoir& r = created[base + size_t(i)];
+    float t = 0.f;
+    const size_t k = pickEdge_.sample(sampler.next1D(), &t);
+    const EdgeRef ref = edges_[k];
+    const MeshEdge& e = topology_[ref.mesh].edges()[ref.edge];
+    const TriangleMesh& mesh = scene_.meshes[ref.mesh];
+    const ShadowEdge se{0, ref.mesh, mesh.positions[e.v0], mesh.positions[e.v1]};
+    r.mesh = ref.mesh;
+    r.edge = ref.edge;
+    r.t = t;
+    r.pB = se.a + (se.b - se.a) * t;
+    r.single = e.boundary();
+    r.nA = scene_.faceNormal(ref.mesh, e.face0);
+    r.nB = r.single ? r.nA : scene_.faceNormal(ref.mesh, e.face1);
+
+    // p̂(y) = g(y) (c + h(y)) for this sample's p^B (see the header).
+    auto target = [&](const Candidate& c) -> float {
+      const Light& l = scene_.lights[c.light];
+      if (l.mesh == ref.mesh || !inSupport(l, c.y, c.n, r.pB, r.nA, r.nB, r.single)) return 0.f;
+      const Vec3 toB = r.pB - c.y;
+      const float d2 = lengthSquared(toB);
+      if (!(d2 > 0.f)) return 0.f;
+      const float g = luminance(areaEmission(l, c.n, toB)) * std::abs(dot(c.n, toB)) / (d2 * std::sqrt(d2));
+      ShadowBorderPoint bp;
+      ++counters.rays.shadow;
+      float h = 0.f;
+      if (shadowBorderPoint(scene_, params_, cam, c.y, se, t, bp)) {
+        const Rgb a = adjoint.rgb(std::clamp(int(bp.x.x), 0, W - 1), std::clamp(int(bp.x.y), 0, H - 1));
+        const Vec3 toY = c.y - bp.hit.p;
+        const float r2 = lengthSquared(toY);
+        if (r2 > 0.f)
+          h = (std::abs(a.x) + std::abs(a.y) + std::abs(a.z)) * bp.speed * std::abs(dot(bp.hit.ng, toY)) / std::sqrt(r2) * (d2 / r2);
+      }
+      const float p = g * (floorC + (std::isfinite(h) ? h : 0.f));
+      return std::isfinite(p) ? p : 0.f;
+    };
+
+    Reservoir res;  // only its streaming: y is tracked in `chosen`
+    Candidate chosen;
+    for (int j = 0; j < settings_.candidates; ++j) {
+      Candidate c;
+      c.light = uint32_t(pickLight_.sample(sampler.next1D()));
+      const Light& l = scene_.lights[c.light];
+      float remapped;
+      const float u = sampler.next1D(), v = sampler.next1D();
+      c.tri = uint32_t(l.triangles.sample(u, &remapped));
+      const Vec2 bc = sampleUniformTriangle({remapped, v});
+      c.b0 = bc.x;
+      c.b1 = bc.y;
+      const SurfaceHit yh = scene_.surfaceAt(l.mesh, c.tri, c.b0, c.b1);
+      c.y = yh.p;
+      c.n = yh.ng;
+      const float p = target(c);
+      const double pdf = double(pickLight_.pmf(c.light)) / double(l.area);
+      if (res.update(LightSampleRef{}, p > 0.f ? double(p) / pdf : 0.0, p, sampler.next1D())) chosen = c;
+    }
+    float Z = res.M;
+    uint32_t nb[8];
+    const int found = settings_.reuse ? previous_.nearest(r.pB, radius_, settings_.neighbours, nb) : 0;
+    const EdgeReservoir* used[8];
+    float usedM[8];
+    for (int q = 0; q < found; ++q) {
+      const EdgeReservoir& o = previous_.items[nb[q]];
+      used[q] = &o;
+      usedM[q] = std::min(o.M, maxM);
+      const float u = sampler.next1D();
+      if (!(o.W > 0.f)) continue;
+      Candidate c;
+      c.light = o.light;
+      c.tri = o.tri;
+      c.b0 = o.b0;
+      c.b1 = o.b1;
+      const SurfaceHit yh = scene_.surfaceAt(scene_.lights[o.light].mesh, o.tri, o.b0, o.b1);
+      c.y = yh.p;
+      c.n = yh.ng;
+      const float p = target(c);
+      if (res.stream(LightSampleRef{}, double(p) * double(o.W) * double(usedM[q]), p, u)) chosen = c;
+    }
+    for (int q = 0; q < found; ++q) res.M += usedM[q];
+    if (res.targetY > 0.f) {
+      // 1/Z (Alg. 3): the reservoirs whose target could have produced y, each tested where it was made.
+      const Light& l = scene_.lights[chosen.light];
+      for (int q = 0; q < found; ++q)
+        if (l.mesh != used[q]->mesh && inSupport(l, chosen.y, chosen.n, used[q]->pB, used[q]->nA, used[q]->nB, used[q]->single))
+          Z += usedM[q];
+    }
+    res.finalize(Z);
+    r.wSum = res.wSum;
+    r.M = res.M;
+    r.W = res.W;
+    if (!(res.W > 0.f)) return;
+    r.light = chosen.light;
+    r.tri = chosen.tri;
+    r.b0 = chosen.b0;
+    r.b1 = chosen.b1;
+
+    // The sample: F(p^B, y) W / p(p^B), F measured on the film (Eq. 25).
+    ShadowBorderPoint bp;
+    ++counters.rays.shadow;
+    const bool onFilm = shadowBorderPoint(scene_, params_, cam, chosen.y, se, t, bp);
+    const Vec3 dir = normalize(r.pB - chosen.y);
+    if (onFilm) {
+      r.hasP1 = true;
+      r.p1 = bp.hit.p;
+    } else {
+      SurfaceHit hit;
+      ++counters.rays.shadow;
+      if (scene_.intersect(r.pB + dir * rayOffset(r.pB), dir, hit)) {
+        r.hasP1 = true;
+        r.p1 = hit.p;
+      }
+      return;
+    }
+    const Light& l = scene_.lights[chosen.light];
+    const LightPoint lp{chosen.light, chosen.y, chosen.n, 0.0};
+    const Rgb minus = pointSourceRadiance(scene_, cam, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, l, lp, counters.rays);
+    const Rgb plus = pointSourceRadiance(scene_, cam, bp.x.x + bp.eps * bp.n.x, bp.x.y + bp.eps * bp.n.y, l, lp, counters.rays);
+    const Rgb diff = minus - plus;
+    if (isBlack(diff)) return;
+    const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, W - 1), std::clamp(int(bp.x.y), 0, H - 1));
+    const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) * double(res.W) /
+                     (double(pickEdge_.pmf(k)) * double(samples));
+    if (w != 0.0) addShadowBorderGradient(scene_, params_, se, bp, w, grad);
+  });
+  return st;
+}
+
+size_t EdgeReservoirBoundary::preserve(const std::vector<int>& views, std::vector<EdgeReservoir>& next, RayStats& rays) const {
+  size_t kept = 0;
+  for (const EdgeReservoir& r : previous_.items) {
+    if (!r.hasP1 || r.age + 1 >= kMaxAge) continue;
+    bool seen = false;
+    for (int v : views) {
+      const Camera& cam = scene_.cameras[size_t(v)];
+      if (!(dot(r.p1 - cam.eye, cam.forward) > 0.f)) continue;
+      const Vec2 x = filmPosition(cam, r.p1, scene_.width, scene_.height);
+      if (!(x.x >= 0.f && x.y >= 0.f && x.x < float(scene_.width) && x.y < float(scene_.height))) continue;
+      const Vec3 toEye = cam.eye - r.p1;
+      const float dist = length(toEye);
+      const Vec3 d = toEye / dist;
+      Vec3 dir;
+      float tmax;
+      ++rays.shadow;
+      if (!scene_.occludedSegment(r.p1 + d * rayOffset(r.p1), cam.eye, dir, tmax)) {
+        seen = true;
+        break;
+      }
+    }
+    if (seen) continue;
+    next.push_back(r);
+    ++next.back().age;
+    ++kept;
+  }
+  return kept;
+}
+
+}  // namespace invr
