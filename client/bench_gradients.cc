@@ -1,5 +1,6 @@
 // Benchmarks of the gradient estimators (Wang et al. 2023): equal-time gradient error, ReSTIR's
 // overhead at equal samples, and equal-time reconstruction. Each prints a table or --json.
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -93,6 +94,7 @@ BenchReport benchGradients(const GradientsArgs& a) {
   if (a.neighbours > 0) s.problem.gradient.restir.neighbours = a.neighbours;
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
   if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
+  if (a.edgeNeighbours != 0) s.problem.gradient.boundary.edgeNeighbours = std::max(0, a.edgeNeighbours);
   const auto views = viewsForStep(s.problem, 0);
   // Reference: not the method under test's own chain but independent RIS evaluations at high spp
   // (RIS is checked against finite differences in tests/core/diff), averaged in two halves.
@@ -198,6 +200,75 @@ BenchReport benchGradients(const GradientsArgs& a) {
              "+- " + BenchReport::fmt(ratioSe(1, 2) * seconds[1] / seconds[2]) + " (relMSE x seconds)");
   rep.number("efficiency_ratio_pt_over_restir", relmse[0] * seconds[0] / (relmse[2] * seconds[2]),
              "+- " + BenchReport::fmt(ratioSe(0, 2) * seconds[0] / seconds[2]) + " (relMSE x seconds)");
+
+  // Shape jobs (Fig. 7): ReSTIR with one boundary term or edge importance switched off, and RIS
+  // with the light-points-first shadow sampling, at the same settings and steps as ReSTIR above. A
+  // term switched off shows as bias: its relMSE stays high however many steps are averaged.
+  if (s.problem.params.hasShapeParameters() && a.ablations) {
+    auto measure = [&](GradientOptions o) {
+      GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, o);
+      const bool restir = o.method == GradientMethod::Restir;
+      const int chains = restir ? std::max(1, std::min(a.restirChains, a.reps)) : a.reps;
+      const int perChain = std::max(1, a.reps / chains);
+      std::vector<double> groupMeans;
+      double secs = 0;
+      for (int c = 0; c < chains; ++c) {
+        EngineSession session;
+        GradientRequest r;
+        r.views = views;
+        r.seed = 12345 + uint64_t(c) * 7919;
+        const int burn = restir ? a.burnIn : 0;
+        for (int b = 0; b < burn; ++b) {
+          GradientRequest rb = r;
+          rb.renderOnly = true;
+          rb.step = uint64_t(b);
+          engine.evaluate(rb, session);
+        }
+        double groupErr = 0;
+        for (int i = 0; i < perChain; ++i) {
+          r.step = uint64_t(burn + i);
+          auto t0 = Clock::now();
+          groupErr += relativeSquaredError(engine.evaluate(r, session).gradient, ref) / perChain;
+          secs += since(t0);
+        }
+        groupMeans.push_back(groupErr);
+      }
+      double mean = 0, var = 0;
+      for (double e : groupMeans) mean += e / double(groupMeans.size());
+      for (double e : groupMeans) var += (e - mean) * (e - mean) / double(std::max<size_t>(1, groupMeans.size() - 1));
+      return std::array<double, 3>{mean, std::sqrt(var / double(groupMeans.size())), secs / double(chains * perChain)};
+    };
+    BenchReport::Json rows = BenchReport::Json::object();
+    std::string line;
+    auto row = [&](const std::string& name, const GradientOptions& o) {
+      const auto m = measure(o);
+      rows[name] = {{"relmse", m[0]}, {"relmse_standard_error", m[1]}, {"seconds_per_step", m[2]}};
+      line += (line.empty() ? "" : ", ") + name + " " + BenchReport::fmt(m[0]) + " +- " + BenchReport::fmt(m[1]);
+      return m;
+    };
+    const GradientOptions full = optionsFor(s.problem, GradientMethod::Restir, 1);
+    GradientOptions o = full;
+    o.boundary.primary = o.boundary.secondary = false;
+    row("interior_only", o);
+    o = full;
+    o.boundary.primary = false;
+    row("without_primary", o);
+    o = full;
+    o.boundary.secondary = false;
+    row("without_secondary", o);
+    o = full;
+    o.boundary.edgeImportance = false;
+    const auto noImportance = row("without_edge_importance", o);
+    o = full;
+    o.boundary.edgeNeighbours = 0;
+    row("without_edge_reuse", o);
+    o = optionsFor(s.problem, GradientMethod::Ris, 1);
+    o.boundary.areaSampling = BoundaryOptions::AreaSampling::LightPoints;
+    row("ris_light_points_1spp", o);
+    rep.value("ablations", std::move(rows), "relMSE of ReSTIR at 1 spp with one part off (+- one SE): " + line);
+    const double r = noImportance[0] / relmse[2], rSe = r * std::hypot(noImportance[1] / noImportance[0], relmseSe[2] / relmse[2]);
+    rep.number("ratio_without_edge_importance_over_restir", r, "+- " + BenchReport::fmt(rSe) + " (target >= 2 when area-light shadows carry the gradient)");
+  }
 
   // The case ReSTIR exists for: theta changes every step. Each chain alternates between the
   // start and a point 10 % of the way to the truth, so every measured step (at the start) reuses
@@ -468,6 +539,9 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   g->add_option("--neighbours", ga->neighbours, "ReSTIR neighbours (default: the scene job's)");
   g->add_option("--m-cap", ga->mCap, "ReSTIR confidence cap (default: the scene job's, 2 x M)");
   g->add_option("--radius-pixels", ga->radiusPixels, "ReSTIR neighbour radius in pixel footprints (default: the job's)");
+  g->add_option("--edge-neighbours", ga->edgeNeighbours,
+                 "shape jobs: edge reservoirs merged per secondary-boundary sample (default: the job's; -1: none)");
+  g->add_flag("!--no-ablations", ga->ablations, "shape jobs: skip the per-term and edge-importance rows");
   g->add_option("--param", ga->params,
                  "NAME[=V[,V,V]]: measure this parameter's gradient instead of the job's, at the values given (e.g. "
                  "shapes/knot/translation=0.05,0,0; repeatable)")

@@ -212,6 +212,8 @@ void JobRunner::runSteps(Context& c) {
       g.stats.secondsVariance = r->seconds_variance();
       g.stats.secondsBoundary = r->seconds_boundary();
       g.stats.boundaryEdges = r->boundary_edges();
+      g.stats.edgeReservoirs = r->edge_reservoirs();
+      g.stats.edgeReservoirsPreserved = r->edge_reservoirs_preserved();
       g.stats.reservoirs = r->reservoirs();
       g.stats.meanM = r->mean_m();
       g.stats.meanNeighbours = r->mean_neighbours();
@@ -266,6 +268,8 @@ void JobRunner::runSteps(Context& c) {
     if (p.params.hasShapeParameters()) {
       sp.set_boundary_seconds(st.secondsBoundary);
       sp.set_boundary_edges(st.boundaryEdges);
+      sp.set_edge_reservoirs(st.edgeReservoirs);
+      sp.set_edge_reservoirs_preserved(st.edgeReservoirsPreserved);
     }
     sp.set_reservoirs(st.reservoirs);
     sp.set_mean_m(st.meanM);

@@ -381,6 +381,8 @@ class Worker {
       res.set_seconds_variance(g.stats.secondsVariance);
       res.set_seconds_boundary(g.stats.secondsBoundary);
       res.set_boundary_edges(g.stats.boundaryEdges);
+      res.set_edge_reservoirs(g.stats.edgeReservoirs);
+      res.set_edge_reservoirs_preserved(g.stats.edgeReservoirsPreserved);
       res.set_non_finite(g.stats.nonFiniteSamples);
       res.set_reservoirs(g.stats.reservoirs);
       res.set_mean_m(g.stats.meanM);

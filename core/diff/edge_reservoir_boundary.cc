@@ -81,9 +81,13 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
       ++count[k];
       total += mean;
     }
-    const double eps = double(kEdgeImportanceFloor) * total / double(previous.items.size());
+    // Most edges of a detailed mesh hold no reservoir or one: each edge's mean starts from the
+    // mean over all edges as one prior reservoir, so an edge no sample visited last step is not
+    // starved, and one sample with nothing behind it halves its edge's weight instead of zeroing it.
+    const double mean = total / double(previous.items.size());
+    const double eps = double(kEdgeImportanceFloor) * mean;
     if (eps > 0.0)
-      for (size_t k = 0; k < base.size(); ++k) base[k] = float(double(base[k]) * ((count[k] ? sum[k] / count[k] : 0.0) + eps));
+      for (size_t k = 0; k < base.size(); ++k) base[k] = float(double(base[k]) * ((sum[k] + mean) / (count[k] + 1.0) + eps));
   }
   if (!base.empty() && *std::max_element(base.begin(), base.end()) > 0.f) pickEdge_ = Distribution1D(base);
 }
@@ -99,12 +103,36 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
   // The target's floor c: a tenth of what a border of typical film speed (5 % of the film's size
   // per unit t) over a pixel of mean |dL/dI| would give.
   double meanAdj = 0.0;
+  std::vector<float> absAdj(size_t(W) * size_t(H));
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const Rgb a = adjoint.rgb(x, y);
-      meanAdj += double(std::abs(a.x) + std::abs(a.y) + std::abs(a.z));
+      absAdj[size_t(y) * size_t(W) + size_t(x)] = std::abs(a.x) + std::abs(a.y) + std::abs(a.z);
+      meanAdj += double(absAdj[size_t(y) * size_t(W) + size_t(x)]);
     }
   meanAdj /= double(W) * double(H);
+  // The target reads |dL/dI| averaged over the pixels within kAdjointRadius: one pixel's value is
+  // mostly the noise of the step's render, which a reused sample chosen for it would carry into
+  // the next step's (other) noise.
+  std::vector<float> smoothAdj(absAdj.size());
+  {
+    const int R = kAdjointRadius;
+    std::vector<float> rows(absAdj.size());
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        float s = 0.f;
+        int n = 0;
+        for (int dx = std::max(0, x - R); dx <= std::min(W - 1, x + R); ++dx, ++n) s += absAdj[size_t(y) * size_t(W) + size_t(dx)];
+        rows[size_t(y) * size_t(W) + size_t(x)] = s / float(n);
+      }
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        float s = 0.f;
+        int n = 0;
+        for (int dy = std::max(0, y - R); dy <= std::min(H - 1, y + R); ++dy, ++n) s += rows[size_t(dy) * size_t(W) + size_t(x)];
+        smoothAdj[size_t(y) * size_t(W) + size_t(x)] = s / float(n);
+      }
+  }
   const float floorC = float(0.1 * meanAdj * 0.05 * double(W + H));
   if (!(floorC > 0.f)) return st;  // dL/dI is zero: so is this term
   const size_t base = created.size();
@@ -140,11 +168,11 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
       ++counters.rays.shadow;
       float h = 0.f;
       if (shadowBorderPoint(scene_, params_, cam, c.y, se, t, bp)) {
-        const Rgb a = adjoint.rgb(std::clamp(int(bp.x.x), 0, W - 1), std::clamp(int(bp.x.y), 0, H - 1));
+        const float a = smoothAdj[size_t(std::clamp(int(bp.x.y), 0, H - 1)) * size_t(W) + size_t(std::clamp(int(bp.x.x), 0, W - 1))];
         const Vec3 toY = c.y - bp.hit.p;
         const float r2 = lengthSquared(toY);
         if (r2 > 0.f)
-          h = (std::abs(a.x) + std::abs(a.y) + std::abs(a.z)) * bp.speed * std::abs(dot(bp.hit.ng, toY)) / std::sqrt(r2) * (d2 / r2);
+          h = a * bp.speed * std::abs(dot(bp.hit.ng, toY)) / std::sqrt(r2) * (d2 / r2);
       }
       const float p = g * (floorC + (std::isfinite(h) ? h : 0.f));
       return std::isfinite(p) ? p : 0.f;

@@ -34,7 +34,7 @@ struct EdgeSamplingSettings {
   bool reuse = true;           // merge the previous step's edge reservoirs (Alg. 6)
   bool edgeImportance = true;  // p_k from those reservoirs (Eq. 27)
   int neighbours = 3;          // reservoirs merged per sample
-  float maxM = 20.f;           // cap on a reused reservoir's M, in units of `candidates`
+  float maxM = 2.f;           // cap on a reused reservoir's M, in units of `candidates`
 };
 
 class EdgeReservoirBoundary {
@@ -45,6 +45,7 @@ class EdgeReservoirBoundary {
   // Reservoirs kept by Alg. 8 are dropped after this many steps (else reservoirs no view sees would
   // pile up for ever).
   static constexpr uint32_t kMaxAge = 8;
+  static constexpr int kAdjointRadius = 2;  // pixels: the target's |dL/dI| is a (2r+1)^2 box mean
 
   // Prepares a step: re-places `previous` in the current geometry, indexes it and builds the edge
   // distribution. `previous` must outlive the object and stay unchanged.

@@ -292,6 +292,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       es.candidates = opt_.method == GradientMethod::Pt ? 1 : opt_.restir.candidates;
       es.reuse = restirDerivative;
       es.edgeImportance = restirDerivative && bo.edgeImportance;
+      es.neighbours = bo.edgeNeighbours;
       edgeSampler.emplace(scene_, params_, topology_, session.edges, es);
     }
     for (size_t k = 0; k < req.views.size(); ++k) {

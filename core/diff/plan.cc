@@ -101,10 +101,21 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
       if (delta)
         est.push_back("boundary, secondary, point/spot lights: " + n +
                       " samples per view and step on occluder silhouette edges seen from each light, jump traced with the interior estimator");
-      if (area)
+      if (area && b.areaSampling == BoundaryOptions::AreaSampling::LightPoints)
         est.push_back("boundary, secondary, area lights (Eq. 21-26): " + n + " samples per view and step over the silhouette edges of " +
-                      std::to_string(b.lightPoints) + " light points per pass, jump evaluated directly; edge reservoirs and edge importance "
-                      "(Alg. 6, Eq. 27) not built");
+                      std::to_string(b.lightPoints) + " light points per pass, jump evaluated directly");
+      else if (area) {
+        const bool reuse = g.method == GradientMethod::Restir && !g.forwardOnly;
+        const std::string light = g.method == GradientMethod::Pt ? std::string("one light sample")
+                                                                 : "streaming RIS over " + std::to_string(g.restir.candidates) + " light samples";
+        est.push_back("boundary, secondary, area lights (multi-directional, Eq. 21-26): " + n +
+                      " samples per view and step, an edge point first, then the light point by " + light +
+                      (reuse ? ", merged with " + std::to_string(b.edgeNeighbours) +
+                                   " kd-tree neighbour(s) among the previous step's edge reservoirs (Alg. 6; Alg. 8 keeps those no view "
+                                   "of the batch sees)" + (b.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
+                             : std::string("; edges by length")) +
+                      "; jump evaluated directly");
+      }
     }
     if (g.method == GradientMethod::Restir)
       est.push_back(b.multiViewShortcut

@@ -51,6 +51,8 @@ void accumulateShard(GradientResult& total, const GradientResult& shard) {
   t.secondsStage1 += s.secondsStage1;
   t.secondsBoundary += s.secondsBoundary;
   t.boundaryEdges += s.boundaryEdges;
+  t.edgeReservoirs += s.edgeReservoirs;
+  t.edgeReservoirsPreserved += s.edgeReservoirsPreserved;
   t.boundarySamples += s.boundarySamples;
   t.pixelsTraced += s.pixelsTraced;
   t.reservoirs += s.reservoirs;

@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "core/diff/edge_reservoir_boundary.h"
 #include "core/diff/gradient_engine.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
@@ -220,6 +221,67 @@ TEST(ShapeGradient, RestirReusesSamplesCreatedInEarlierGeometry) {
   GradientOptions shortcut = shapeOptions(GradientMethod::Restir);
   shortcut.boundary.multiViewShortcut = true;
   run(c, 0, fdX, shortcut, 96, "restir after moves, multi-view shortcut", approach);
+}
+
+// Every way the area light's shadow borders are sampled, where the secondary term is the whole
+// derivative: light points first (area_shadow_boundary.h) and edge points first
+// (edge_reservoir_boundary.h) with plain light sampling (pt), RIS, and ReSTIR's edge reservoirs
+// reused across steps while the card moves (with and without edge importance, and with Alg. 8
+// keeping reservoirs across a step that rendered another view).
+TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
+  ShapeCase c(cardScene(true, false), "shapes/card/translation", {0.08f, -0.05f, 0.1f});
+  const MeanSE fd = validatedFd(c, 0, 0.01f, "card out of view, area light, x");
+  const std::vector<float> approach{0.02f, 0.f, 0.f};
+  GradientOptions lightPoints = shapeOptions(GradientMethod::Ris);
+  lightPoints.boundary.areaSampling = BoundaryOptions::AreaSampling::LightPoints;
+  expectMatches(run(c, 0, fd, lightPoints, 96, "ris, light points first"), "ris, light points first");
+  expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Pt), 96, "pt, edge first"), "pt, edge first");
+  expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Ris), 96, "ris, edge first"), "ris, edge first");
+  expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Restir), 96, "restir, edge reservoirs", approach), "restir, edge reservoirs");
+  GradientOptions noImportance = shapeOptions(GradientMethod::Restir);
+  noImportance.boundary.edgeImportance = false;
+  expectMatches(run(c, 0, fd, noImportance, 96, "restir, no edge importance", approach), "restir, no edge importance");
+  GradientOptions forwardOnly = shapeOptions(GradientMethod::Restir);
+  forwardOnly.forwardOnly = true;
+  expectMatches(run(c, 0, fd, forwardOnly, 96, "forward-only"), "forward-only");
+}
+
+// Alg. 6 keeps one edge reservoir per sample; Alg. 8 adds the previous step's reservoirs whose p1
+// the step's views do not see, never when the step holds every view of the session, and drops them
+// after EdgeReservoirBoundary::kMaxAge steps.
+TEST(ShapeGradient, EdgeReservoirsAreKeptAndUnseenOnesPreserved) {
+  ShapeCase c(cardScene(true, false), "shapes/card/translation", {0.08f, -0.05f, 0.1f});
+  GradientOptions o = shapeOptions(GradientMethod::Restir);
+  o.boundary.samples = 256;
+  GradientEngine engine(*c.scene, c.reg, {c.target}, o);
+  for (bool all : {false, true}) {
+    EngineSession session;
+    GradientRequest r;
+    r.views = {0};
+    r.allSessionViews = all;
+    size_t most = 0;
+    for (uint64_t step = 0; step < 12; ++step) {
+      r.step = step;
+      const GradientStats st = engine.evaluate(r, session).stats;
+      EXPECT_EQ(st.edgeReservoirs, 256u + st.edgeReservoirsPreserved) << "step " << step;
+      EXPECT_EQ(session.edges.items.size(), st.edgeReservoirs);
+      if (step == 0 || all) {
+        EXPECT_EQ(st.edgeReservoirsPreserved, 0u) << "step " << step;
+      }
+      if (step == 1 && !all) {
+        EXPECT_GT(st.edgeReservoirsPreserved, 0u);  // shadows falling off the film, or hidden
+      }
+      most = std::max(most, st.edgeReservoirsPreserved);
+    }
+    EXPECT_LE(most, size_t(EdgeReservoirBoundary::kMaxAge - 1) * 256u);
+  }
+  GradientOptions pt = shapeOptions(GradientMethod::Pt);
+  GradientEngine ptEngine(*c.scene, c.reg, {c.target}, pt);
+  EngineSession session;
+  GradientRequest r;
+  r.views = {0};
+  EXPECT_EQ(ptEngine.evaluate(r, session).stats.edgeReservoirs, 0u);  // nothing to reuse
+  EXPECT_TRUE(session.edges.items.empty());
 }
 
 TEST(ShapeGradient, ReceiverMovingUnderAPointLight) {
