@@ -16,7 +16,7 @@ struct GradientsArgs {
   int neighbours = 0;  // 0: the job's default
   double mCap = 0;
   double radiusPixels = 0;
-  int edgeNeighbours = 0;  // shape jobs: edge reservoirs merged per sample; 0: the job's, -1: none
+  int edgeNeighbours = -1;  // shape jobs: edge reservoirs merged per sample; -1: the job's
   bool ablations = true;   // shape jobs: the per-term and edge-importance rows
   int targetSpp = 256;
   std::vector<std::string> params;  // --param NAME[=V[,V,V]]: replaces the zoo job's parameters

@@ -94,7 +94,7 @@ BenchReport benchGradients(const GradientsArgs& a) {
   if (a.neighbours > 0) s.problem.gradient.restir.neighbours = a.neighbours;
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
   if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
-  if (a.edgeNeighbours != 0) s.problem.gradient.boundary.edgeNeighbours = std::max(0, a.edgeNeighbours);
+  if (a.edgeNeighbours >= 0) s.problem.gradient.boundary.edgeNeighbours = a.edgeNeighbours;
   const auto views = viewsForStep(s.problem, 0);
   // Reference: not the method under test's own chain but independent RIS evaluations at high spp
   // (RIS is checked against finite differences in tests/core/diff), averaged in two halves.
@@ -260,8 +260,8 @@ BenchReport benchGradients(const GradientsArgs& a) {
     o.boundary.edgeImportance = false;
     const auto noImportance = row("without_edge_importance", o);
     o = full;
-    o.boundary.edgeNeighbours = 0;
-    row("without_edge_reuse", o);
+    o.boundary.edgeNeighbours = full.boundary.edgeNeighbours > 0 ? 0 : 1;
+    row(full.boundary.edgeNeighbours > 0 ? "without_edge_neighbours" : "with_one_edge_neighbour", o);
     o = optionsFor(s.problem, GradientMethod::Ris, 1);
     o.boundary.areaSampling = BoundaryOptions::AreaSampling::LightPoints;
     row("ris_light_points_1spp", o);
@@ -540,7 +540,7 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   g->add_option("--m-cap", ga->mCap, "ReSTIR confidence cap (default: the scene job's, 2 x M)");
   g->add_option("--radius-pixels", ga->radiusPixels, "ReSTIR neighbour radius in pixel footprints (default: the job's)");
   g->add_option("--edge-neighbours", ga->edgeNeighbours,
-                 "shape jobs: edge reservoirs merged per secondary-boundary sample (default: the job's; -1: none)");
+                 "shape jobs: edge reservoirs merged per secondary-boundary sample, 0..8 (default: the job's)");
   g->add_flag("!--no-ablations", ga->ablations, "shape jobs: skip the per-term and edge-importance rows");
   g->add_option("--param", ga->params,
                  "NAME[=V[,V,V]]: measure this parameter's gradient instead of the job's, at the values given (e.g. "

@@ -33,7 +33,7 @@ struct EdgeSamplingSettings {
   int candidates = 8;          // light candidates per edge point (1: plain light sampling, Eq. 21)
   bool reuse = true;           // merge the previous step's edge reservoirs (Alg. 6)
   bool edgeImportance = true;  // p_k from those reservoirs (Eq. 27)
-  int neighbours = 3;          // reservoirs merged per sample
+  int neighbours = 0;          // reservoirs merged per sample
   float maxM = 2.f;           // cap on a reused reservoir's M, in units of `candidates`
 };
 

@@ -48,7 +48,9 @@ struct BoundaryOptions {
   enum class AreaSampling { EdgeFirst, LightPoints };
   AreaSampling areaSampling = AreaSampling::EdgeFirst;
   bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
-  int edgeNeighbours = 1;      // restir: previous-step edge reservoirs merged per sample (Alg. 6)
+  // restir: previous-step edge reservoirs merged per sample (Alg. 6). 0: they steer edge importance
+  // only; merging measured no gain (docs/differentiable-rendering.md).
+  int edgeNeighbours = 0;
   int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
 };
 

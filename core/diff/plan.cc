@@ -110,9 +110,11 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
                                                                  : "streaming RIS over " + std::to_string(g.restir.candidates) + " light samples";
         est.push_back("boundary, secondary, area lights (multi-directional, Eq. 21-26): " + n +
                       " samples per view and step, an edge point first, then the light point by " + light +
-                      (reuse ? ", merged with " + std::to_string(b.edgeNeighbours) +
-                                   " kd-tree neighbour(s) among the previous step's edge reservoirs (Alg. 6; Alg. 8 keeps those no view "
-                                   "of the batch sees)" + (b.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
+                      (reuse ? std::string("; an edge reservoir kept per sample (Alg. 6; Alg. 8 keeps those no view of the batch sees)") +
+                                   (b.edgeNeighbours > 0 ? ", each sample merging " + std::to_string(b.edgeNeighbours) +
+                                                               " kd-tree neighbour(s) among the previous step's"
+                                                         : std::string()) +
+                                   (b.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
                              : std::string("; edges by length")) +
                       "; jump evaluated directly");
       }

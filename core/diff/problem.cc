@@ -254,8 +254,8 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     bo.areaSampling = b.area_sampling() == v1::AREA_SAMPLING_LIGHT_POINTS ? BoundaryOptions::AreaSampling::LightPoints
                                                                          : BoundaryOptions::AreaSampling::EdgeFirst;
     bo.edgeImportance = !b.has_edge_importance() || b.edge_importance();
-    if (b.edge_neighbours() < -1 || b.edge_neighbours() > 8) fail("boundary.edge_neighbours", "must be in 1..8 (0: the default 1; -1: none)");
-    bo.edgeNeighbours = b.edge_neighbours() == 0 ? BoundaryOptions{}.edgeNeighbours : std::max(0, b.edge_neighbours());
+    if (b.edge_neighbours() < 0 || b.edge_neighbours() > 8) fail("boundary.edge_neighbours", "must be in 0..8 (0, the default: none)");
+    bo.edgeNeighbours = b.edge_neighbours();
   }
   try {
     checkShapeJob(*p.scene, p.params, p.gradient);

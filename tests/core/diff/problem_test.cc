@@ -63,6 +63,10 @@ TEST(Problem, ShapeJobsSayWhatTheyCannotDo) {
                   "pixel_sampler all");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "method": "METHOD_PT", "boundary": {"samples": -1}})"),
                   "optimization.boundary.samples");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"edge_neighbours": 9}})"),
+                  "optimization.boundary.edge_neighbours");
+  EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"area_sampling": "AREA_SAMPLING_LIGHT_POINTS",
+                    "edge_importance": false, "edge_neighbours": 3}})"), "");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/nope/translation"}]})"), "no shape named 'nope'");
 }
 

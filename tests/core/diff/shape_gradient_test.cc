@@ -226,8 +226,7 @@ TEST(ShapeGradient, RestirReusesSamplesCreatedInEarlierGeometry) {
 // Every way the area light's shadow borders are sampled, where the secondary term is the whole
 // derivative: light points first (area_shadow_boundary.h) and edge points first
 // (edge_reservoir_boundary.h) with plain light sampling (pt), RIS, and ReSTIR's edge reservoirs
-// reused across steps while the card moves (with and without edge importance, and with Alg. 8
-// keeping reservoirs across a step that rendered another view).
+// reused across steps while the card moves (edge importance on and off, and neighbours merged).
 TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
   ShapeCase c(cardScene(true, false), "shapes/card/translation", {0.08f, -0.05f, 0.1f});
   const MeanSE fd = validatedFd(c, 0, 0.01f, "card out of view, area light, x");
@@ -241,6 +240,9 @@ TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
   GradientOptions noImportance = shapeOptions(GradientMethod::Restir);
   noImportance.boundary.edgeImportance = false;
   expectMatches(run(c, 0, fd, noImportance, 96, "restir, no edge importance", approach), "restir, no edge importance");
+  GradientOptions merged = shapeOptions(GradientMethod::Restir);
+  merged.boundary.edgeNeighbours = 3;  // kd-tree neighbours merged, supports tested where they were made
+  expectMatches(run(c, 0, fd, merged, 96, "restir, 3 edge neighbours", approach), "restir, 3 edge neighbours");
   GradientOptions forwardOnly = shapeOptions(GradientMethod::Restir);
   forwardOnly.forwardOnly = true;
   expectMatches(run(c, 0, fd, forwardOnly, 96, "forward-only"), "forward-only");
