@@ -1,11 +1,14 @@
 // The secondary boundary term for point and spot lights (the paper's multi-directional form,
 // Eq. 21-26, covers area lights only; this estimator is ours). A delta light's shadow border on
 // a receiver is where rays from the light graze an occluder's silhouette edge (silhouette as seen
-// from the light); shadow_border.h parametrises its film image by the occluder edge. Across it the
-// whole radiance jumps, so a sample picks a (light, edge) pair by the weights of
-// collectShadowEdges, t uniformly, traces one camera sample on each side of the border point with
-// the job's interior estimator, and weighs the difference by dLoss/dI of its pixel. Borders hidden
-// from the camera or lying in another shadow need no test: both sides then see the same radiance.
+// from the light); shadow_border.h parametrises its film image by the occluder edge. A sample
+// picks a (light, edge) pair by the weights of collectShadowEdges and t uniformly, and weighs the
+// jump of that one light's radiance across the border (deltaSourceRadiance on each film side:
+// exact, one camera and one shadow ray a side) by dLoss/dI of its pixel. Only that light's jump:
+// the whole radiance difference the job's estimator measured there also held whatever other
+// discontinuity lay under a border point, and on self-shadowing meshes (the knot) that added
+// 8 % to the gradient. Borders hidden from the camera, or on the side of the receiver the light
+// does not reach, are skipped.
 #pragma once
 
 #include "core/diff/primary_boundary.h"

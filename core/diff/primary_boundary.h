@@ -37,6 +37,12 @@ class PrimaryBoundary {
 
   // How far off the edge, in pixels, the two sides are sampled.
   static constexpr float kSideOffsetPixels = 1e-3f;
+  // The smallest it shrinks to where a face next to the edge is thinner (film positions of the
+  // edge and of camera rays agree to about 1e-5 px in float).
+  static constexpr float kMinSideOffsetPixels = 1e-4f;
+  // The camera-to-edge segment tested for occluders ends this fraction of its length short of the
+  // edge point, so a face of the edge, however grazing, is not taken for one.
+  static constexpr float kVisibilitySlack = 1e-3f;
 
  private:
   const Scene& scene_;

@@ -52,6 +52,15 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   if (!(dot(y - cam.eye, cam.forward) > 0.f)) return false;
   bp.x = filmPosition(cam, y, W, H);
   if (!(bp.x.x >= 0.f && bp.x.y >= 0.f && bp.x.x < float(W) && bp.x.y < float(H))) return false;
+  // A border the camera does not see is not in the image. Without this test the film sides of a
+  // hidden border measured whatever lay in front of it, and where that was the occluder's own
+  // silhouette (the source near the eye's line of sight) they counted the primary term's jump again.
+  Vec3 toCam;
+  float camDist;
+  if (scene.occludedSegment(offsetOrigin(y, nr, cam.eye - y), cam.eye, toCam, camDist)) return false;
+  // The source lights y only from the side the camera sees it from; on the other side both sides
+  // of the border are dark.
+  if (!(dot(nr, l - y) * dot(nr, cam.eye - y) > 0.f)) return false;
   bp.s = length(y - l) / distE;
   // Film tangent of the curve: dy/dt = ds/dt (e - l) + s (b - a), ray-plane at y.
   const Vec3 de = se.b - se.a;
@@ -80,6 +89,23 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
   const float c = dot(g, bp.toE) / bp.denom;
   params.addPointGradient(scene, se.mesh, bp.e, (g - nr * c) * bp.s, grad);
   params.addPointGradient(scene, bp.hit.mesh, bp.hit.p, nr * c, grad);
+}
+
+Rgb deltaSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, RayStats& rays) {
+  const Vec3 d = cam.direction(fx, fy, scene.width, scene.height);
+  SurfaceHit hit;
+  ++rays.camera;
+  if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
+  const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
+  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
+  sp.wo = sp.frame.toLocal(-d);
+  const LightSample ls = sampleLight(l, scene, hit.p, Vec2(0.f, 0.f));
+  if (isBlack(ls.radiance)) return Rgb(0.f);
+  const Rgb f = bsdfTowards(sp, ls.wi);
+  if (isBlack(f)) return Rgb(0.f);
+  ++rays.shadow;
+  if (traceShadow(scene, sp, ls, nullptr)) return Rgb(0.f);
+  return f * ls.radiance;
 }
 
 float emittedPower(const Light& l) { return l.kind == LightKind::Area ? luminance(l.radiance) * l.scale * l.area : 0.f; }

@@ -57,6 +57,11 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
 void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
                              double w, PathGradient& grad);
 
+// What the point or spot light l adds to the film sample through (fx, fy): f |cos| I falloff / r^2,
+// visibility included. The delta-light border term differences this one source across the
+// border: its jump is exact, and no other light's noise or other discontinuity enters it.
+Rgb deltaSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, RayStats& rays);
+
 // Area lights as integrals of point sources (area_shadow_boundary.h, edge_reservoir_boundary.h).
 float emittedPower(const Light& l);  // luminance of the power an area light emits; 0 for other lights
 

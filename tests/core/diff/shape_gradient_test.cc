@@ -20,6 +20,7 @@
 #include "core/diff/gradient_engine.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
+#include "core/scene/zoo.h"
 #include "test_util.h"
 
 namespace invr {
@@ -69,7 +70,9 @@ struct ShapeCase {
   std::vector<float> truth, theta;
   Image target;
   RenderOptions ro;
-  ShapeCase(const std::string& json, const char* param, std::vector<float> offset) : scene(test::sceneFromJson(json.c_str())) {
+  ShapeCase(const std::string& json, const char* param, std::vector<float> offset)
+      : ShapeCase(test::sceneFromJson(json.c_str()), param, std::move(offset)) {}
+  ShapeCase(std::unique_ptr<Scene> s, const char* param, std::vector<float> offset) : scene(std::move(s)) {
     reg.add(*scene, param);
     truth = reg.read(*scene);
     ro.estimator = LightEstimator::Ris;
@@ -303,6 +306,62 @@ TEST(ShapeGradient, GroupRotation) {
   ShapeCase c(cardScene(true), "groups/props/rotation", {0.f, 0.f, 6.f});
   const MeanSE fd = validatedFd(c, 2, 0.5f, "group rotation z, area light");
   expectMatches(run(c, 2, fd, shapeOptions(GradientMethod::Pt), 96, "pt, group rotation z"), "pt, group rotation z");
+}
+
+// The zoo's knot (Wang et al. 2023, Figs. 6-7) at a small film: a flat-shaded torus knot whose
+// many silhouette edges cast shadows under a bright spot and two dim point fills (delta lights
+// only, so every shadow border goes to delta_shadow_boundary). `fillsOnly` drops the spot and
+// brightens the fills, so the point lights' borders carry the derivative.
+std::unique_ptr<Scene> knotScene(bool fillsOnly) {
+  invr::v1::Scene s = zooScene("knot");
+  s.mutable_film()->set_width(64);
+  s.mutable_film()->set_height(48);
+  if (fillsOnly) {
+    invr::v1::Scene kept = s;
+    kept.clear_lights();
+    for (const auto& l : s.lights()) {
+      if (l.has_spot()) continue;
+      auto* p = kept.add_lights();
+      *p = l;
+      auto* i = p->mutable_point()->mutable_intensity();
+      i->set_r(i->r() * 12);
+      i->set_g(i->g() * 12);
+      i->set_b(i->b() * 12);
+    }
+    s = kept;
+  }
+  return buildScene(s);
+}
+
+TEST(ShapeGradient, KnotUnderASpotAndPointFills) {
+  ShapeCase c(knotScene(false), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
+  const MeanSE fd = validatedFd(c, 0, 0.005f, "knot x, spot and fills");
+  GradientOptions pt = shapeOptions(GradientMethod::Pt);
+  pt.boundary.samples = 32768;
+  expectMatches(run(c, 0, fd, pt, 96, "knot x, pt"), "knot x, pt");
+  for (GradientMethod m : {GradientMethod::Ris, GradientMethod::Restir}) {
+    GradientOptions o = shapeOptions(m);
+    o.boundary.samples = 4096;
+    const std::string what = std::string("knot x, ") + gradientMethodName(m);
+    expectMatches(run(c, 0, fd, o, 96, what.c_str(), {0.01f, 0.f, 0.f}), what.c_str());
+  }
+  GradientOptions forwardOnly = shapeOptions(GradientMethod::Restir);
+  forwardOnly.boundary.samples = 4096;
+  forwardOnly.forwardOnly = true;
+  expectMatches(run(c, 0, fd, forwardOnly, 96, "knot x, forward-only"), "knot x, forward-only");
+}
+
+// The same knot under the two point fills alone, brightened: the point lights' borders (on the
+// floor and on the knot itself) are a tenth of the derivative here.
+TEST(ShapeGradient, KnotUnderPointLightsOnly) {
+  ShapeCase c(knotScene(true), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
+  const MeanSE fd = validatedFd(c, 0, 0.005f, "knot x, point fills");
+  for (GradientMethod m : {GradientMethod::Pt, GradientMethod::Restir}) {
+    GradientOptions o = shapeOptions(m);
+    o.boundary.samples = m == GradientMethod::Pt ? 16384 : 4096;
+    const std::string what = std::string("knot x, point fills, ") + gradientMethodName(m);
+    expectMatches(run(c, 0, fd, o, 96, what.c_str()), what.c_str());
+  }
 }
 
 TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {
