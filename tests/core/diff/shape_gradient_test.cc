@@ -251,6 +251,25 @@ TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
   expectMatches(run(c, 0, fd, forwardOnly, 96, "forward-only"), "forward-only");
 }
 
+// Merged neighbours must be counted in Z only where their own target (their edge's face normals as
+// they were created) could have produced the chosen light point. On a card every neighbour lies on
+// the same edge and the test is nearly always true; on a small box out of view under the area
+// light, neighbours come from the box's other edges, with other normals, whose silhouettes from the
+// lamp differ. Counting them all inflates Z and the estimate comes out low.
+TEST(ShapeGradient, MergedEdgeNeighboursAreCountedByTheirOwnSupport) {
+  std::string json = cardScene(true, false);
+  const std::string card = R"("card", "quad": {})";
+  json.replace(json.find(card), card.size(), R"("card", "box": {})");
+  const std::string tr = kCardOutOfView;
+  json.replace(json.find(tr), tr.size(),
+               R"({"scale": {"x": 0.08, "y": 0.08, "z": 0.08}, "rotate_xyz_degrees": {"x": 25, "z": 17}, "translate": {"x": 1.0, "y": -0.2, "z": 3}})");
+  ShapeCase c(json, "shapes/card/translation", {0.06f, -0.04f, 0.05f});
+  const MeanSE fd = validatedFd(c, 0, 0.01f, "box out of view, area light, x");
+  GradientOptions merged = shapeOptions(GradientMethod::Restir);
+  merged.boundary.edgeNeighbours = 8;
+  expectMatches(run(c, 0, fd, merged, 96, "restir, 8 edge neighbours", {0.02f, 0.f, 0.f}), "restir, 8 edge neighbours");
+}
+
 // Alg. 6 keeps one edge reservoir per sample; Alg. 8 adds the previous step's reservoirs whose p1
 // the step's views do not see, never when the step holds every view of the session, and drops them
 // after EdgeReservoirBoundary::kMaxAge steps.
