@@ -57,16 +57,19 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
   }
   for (size_t m = std::min(topology.size(), scene.meshes.size()); m < firstEdge_.size(); ++m) firstEdge_[m] = uint32_t(edges_.size());
 
-  // Re-place the previous reservoirs on their edges (the index wants where they are now).
-  std::vector<Vec3> where(previous.items.size());
-  for (size_t i = 0; i < where.size(); ++i) {
-    const EdgeReservoir& r = previous.items[i];
-    const MeshEdge& e = topology[r.mesh].edges()[r.edge];
-    const Vec3 a = scene.meshes[r.mesh].positions[e.v0], b = scene.meshes[r.mesh].positions[e.v1];
-    where[i] = a + (b - a) * r.t;
+  // Re-place the previous reservoirs on their edges (the index wants where they are now). Without
+  // neighbours to merge nothing searches it, and edge importance needs only their edges.
+  std::vector<Vec3> where;
+  if (settings_.reuse && settings_.neighbours > 0) {
+    where.resize(previous.items.size());
+    for (size_t i = 0; i < where.size(); ++i) {
+      const EdgeReservoir& r = previous.items[i];
+      const MeshEdge& e = topology[r.mesh].edges()[r.edge];
+      const Vec3 a = scene.meshes[r.mesh].positions[e.v0], b = scene.meshes[r.mesh].positions[e.v1];
+      where[i] = a + (b - a) * r.t;
+    }
   }
-  if (settings_.reuse) previous.index(std::move(where));
-  else previous.index({});
+  previous.index(std::move(where));
   const Vec3 diag = scene.boundsMax - scene.boundsMin;
   radius_ = kNeighbourRadius * length(diag);
 
