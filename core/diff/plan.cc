@@ -92,15 +92,15 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
       area = area || l.kind == LightKind::Area;
     }
     est.push_back(b.primary ? "boundary, primary (Eq. 9-11): " + n + " edge samples per view and step on silhouette and crease edges of moving "
-                                  "meshes, by clipped film length; both sides traced with the interior estimator; box pixel filter, so no "
-                                  "pixel-boundary term"
+                                  "meshes, by clipped film length, hidden edge points skipped; both sides traced with the interior estimator; box pixel "
+                                  "filter, so no pixel-boundary term"
                             : std::string("boundary, primary: off (ablation)"));
     if (!b.secondary)
       est.push_back("boundary, secondary (shadow borders): off (ablation)");
     else {
       if (delta)
         est.push_back("boundary, secondary, point/spot lights: " + n +
-                      " samples per view and step on occluder silhouette edges seen from each light, jump traced with the interior estimator");
+                      " samples per view and step on occluder silhouette edges seen from each light, that light's jump evaluated directly");
       if (area && b.areaSampling == BoundaryOptions::AreaSampling::LightPoints)
         est.push_back("boundary, secondary, area lights (Eq. 21-26): " + n + " samples per view and step over the silhouette edges of " +
                       std::to_string(b.lightPoints) + " light points per pass, jump evaluated directly");
