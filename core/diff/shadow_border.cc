@@ -11,6 +11,20 @@ namespace invr {
 
 namespace {
 float offsetAt(Vec3 p) { return 1e-4f * (1.f + maxComponent(vmax(p, -p))); }
+
+// What `shade` makes of the surface the film sample through (fx, fy) sees; black for nothing or an
+// emitter (the border terms differentiate visibility of light, not of emitters).
+template <class Shade>
+Rgb shadeFilmSample(const Scene& scene, const Camera& cam, float fx, float fy, RayStats& rays, Shade&& shade) {
+  const Vec3 d = cam.direction(fx, fy, scene.width, scene.height);
+  SurfaceHit hit;
+  ++rays.camera;
+  if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
+  const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
+  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
+  sp.wo = sp.frame.toLocal(-d);
+  return shade(sp);
+}
 }  // namespace
 
 void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, Vec3 source,
@@ -92,43 +106,32 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
 }
 
 Rgb deltaSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, RayStats& rays) {
-  const Vec3 d = cam.direction(fx, fy, scene.width, scene.height);
-  SurfaceHit hit;
-  ++rays.camera;
-  if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
-  const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
-  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
-  sp.wo = sp.frame.toLocal(-d);
-  const LightSample ls = sampleLight(l, scene, hit.p, Vec2(0.f, 0.f));
-  if (isBlack(ls.radiance)) return Rgb(0.f);
-  const Rgb f = bsdfTowards(sp, ls.wi);
-  if (isBlack(f)) return Rgb(0.f);
-  ++rays.shadow;
-  if (traceShadow(scene, sp, ls, nullptr)) return Rgb(0.f);
-  return f * ls.radiance;
+  return shadeFilmSample(scene, cam, fx, fy, rays, [&](const ShadingPoint& sp) {
+    const LightSample ls = sampleLight(l, scene, sp.hit->p, Vec2(0.f, 0.f));
+    if (isBlack(ls.radiance)) return Rgb(0.f);
+    const Rgb f = bsdfTowards(sp, ls.wi);
+    if (isBlack(f)) return Rgb(0.f);
+    ++rays.shadow;
+    return traceShadow(scene, sp, ls, nullptr) ? Rgb(0.f) : f * ls.radiance;
+  });
 }
 
 float emittedPower(const Light& l) { return l.kind == LightKind::Area ? luminance(l.radiance) * l.scale * l.area : 0.f; }
 
 Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays) {
-  const Vec3 d = cam.direction(fx, fy, scene.width, scene.height);
-  SurfaceHit hit;
-  ++rays.camera;
-  if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
-  const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
-  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
-  sp.wo = sp.frame.toLocal(-d);
-  const Vec3 r = lp.y - hit.p;
-  const float dist2 = lengthSquared(r);
-  if (!(dist2 > 0.f)) return Rgb(0.f);
-  const Vec3 wi = r / std::sqrt(dist2);
-  const Rgb f = bsdfTowards(sp, wi), Le = areaEmission(l, lp.n, -wi);
-  if (isBlack(f) || isBlack(Le)) return Rgb(0.f);
-  Vec3 dir;
-  float tmax;
-  ++rays.shadow;
-  if (scene.occludedSegment(Scene::shadowOrigin(hit.p, hit.ng, wi), offsetOrigin(lp.y, lp.n, -wi), dir, tmax)) return Rgb(0.f);
-  return f * Le * (std::abs(dot(lp.n, wi)) / dist2);
+  return shadeFilmSample(scene, cam, fx, fy, rays, [&](const ShadingPoint& sp) {
+    const Vec3 r = lp.y - sp.hit->p;
+    const float dist2 = lengthSquared(r);
+    if (!(dist2 > 0.f)) return Rgb(0.f);
+    const Vec3 wi = r / std::sqrt(dist2);
+    const Rgb f = bsdfTowards(sp, wi), Le = areaEmission(l, lp.n, -wi);
+    if (isBlack(f) || isBlack(Le)) return Rgb(0.f);
+    Vec3 dir;
+    float tmax;
+    ++rays.shadow;
+    if (scene.occludedSegment(Scene::shadowOrigin(sp.hit->p, sp.hit->ng, wi), offsetOrigin(lp.y, lp.n, -wi), dir, tmax)) return Rgb(0.f);
+    return f * Le * (std::abs(dot(lp.n, wi)) / dist2);
+  });
 }
 
 }  // namespace invr
