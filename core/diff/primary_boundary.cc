@@ -79,8 +79,6 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
   BoundaryPassStats st;
   // Candidates in the current pose: silhouettes from the eye and creases, clipped.
   std::vector<FilmEdge> edges;
-  std::vector<char> sil;
-  std::vector<std::pair<uint32_t, uint32_t>> faces;
   std::vector<float> lengths;
   for (uint32_t m : params_.movingMeshes()) {
     const TriangleMesh& mesh = scene_.meshes[m];
@@ -111,8 +109,6 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
       fe.length = std::sqrt(span.x * span.x + span.y * span.y) * (fe.s1 - fe.s0);
       if (!(fe.length > 0.f)) continue;
       edges.push_back(fe);
-      sil.push_back(EdgeTopology::silhouetteFrom(e, mesh, normals, cam.eye));
-      faces.push_back({e.face0, e.face1});
       lengths.push_back(fe.length);
     }
   }
@@ -125,8 +121,7 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
   runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
     Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
     float u = 0.f;
-    const size_t ek = pick.sample(sampler.next1D(), &u);
-    const FilmEdge& e = edges[ek];
+    const FilmEdge& e = edges[pick.sample(sampler.next1D(), &u)];
     // A point uniform in film length on the clipped part, and the edge point under it
     // (perspective-correct: 1/z and t/z are linear on the film).
     const float s = e.s0 + (e.s1 - e.s0) * u;
@@ -146,9 +141,9 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
     const FilmCrossing c = radianceJump(scene_, estimator, cam, x, n, sideOffset(scene_, cam, e, x, n, counters), sampler, counters);
     const Rgb adj = adjoint.rgb(c.px, c.py);
     const float w = (adj.x * c.jump.x + adj.y * c.jump.y + adj.z * c.jump.z) * total / float(samples);
+    if (w == 0.f) return;
     Vec3 dx, dy;
     filmJacobian(cam, P, H, dx, dy);
-    if (w == 0.f) return;
     params_.addPointGradient(scene_, e.mesh, P, (dx * n.x + dy * n.y) * w, grad);  // w * n . dfilm/dP
   });
   return st;
