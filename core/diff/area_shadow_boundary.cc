@@ -42,7 +42,7 @@ BoundaryPassStats AreaShadowBoundary::run(int view, const Image& adjoint, int sa
     const Vec2 bc = sampleUniformTriangle({remapped, v});
     const SurfaceHit y = scene_.surfaceAt(l.mesh, tri, bc.x, bc.y);
     points.push_back({li, y.p, y.ng, double(pickLight.pmf(li)) / double(l.area)});
-    collectShadowEdges(scene_, params_, topology_, y.p, uint32_t(j), edges, weights, l.mesh);
+    collectShadowEdges(scene_, params_, topology_, ShadowSource::at(y.p), uint32_t(j), edges, weights, l.mesh);
   }
   st.candidateEdges = edges.size();
   if (edges.empty()) return st;
@@ -55,7 +55,7 @@ BoundaryPassStats AreaShadowBoundary::run(int view, const Image& adjoint, int sa
     const ShadowEdge& se = edges[k];
     const LightPoint& lp = points[se.source];
     ShadowBorderPoint bp;
-    if (!shadowBorderPoint(scene_, params_, cam, lp.y, se, t, bp)) return;
+    if (!shadowBorderPoint(scene_, params_, cam, ShadowSource::at(lp.y), se, t, bp)) return;
     const Light& l = scene_.lights[lp.light];
     const Rgb minus = pointSourceRadiance(scene_, cam, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, l, lp, counters.rays);
     const Rgb plus = pointSourceRadiance(scene_, cam, bp.x.x + bp.eps * bp.n.x, bp.x.y + bp.eps * bp.n.y, l, lp, counters.rays);

@@ -27,7 +27,7 @@ BoundaryPassStats DeltaShadowBoundary::run(const InteriorEstimator& /*estimator*
   std::vector<const Light*> sources;
   for (const Light& light : scene_.lights) {
     if (!light.isDelta()) continue;
-    collectShadowEdges(scene_, params_, topology_, light.position, uint32_t(sources.size()), edges, weights);
+    collectShadowEdges(scene_, params_, topology_, ShadowSource::at(light.position), uint32_t(sources.size()), edges, weights);
     sources.push_back(&light);
   }
   st.candidateEdges = edges.size();
@@ -41,7 +41,7 @@ BoundaryPassStats DeltaShadowBoundary::run(const InteriorEstimator& /*estimator*
     const ShadowEdge& se = edges[k];
     ShadowBorderPoint bp;
     const Light& light = *sources[se.source];
-    if (!shadowBorderPoint(scene_, params_, cam, light.position, se, t, bp)) return;
+    if (!shadowBorderPoint(scene_, params_, cam, ShadowSource::at(light.position), se, t, bp)) return;
     // pdf of (edge, t): the edge's probability (t is uniform on [0, 1]).
     const double pdf = double(pick.pmf(k));
     const Rgb minus = deltaSourceRadiance(scene_, cam, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, light, counters.rays);

@@ -11,6 +11,7 @@
 #include "core/diff/area_shadow_boundary.h"
 #include "core/diff/edge_reservoir_boundary.h"
 #include "core/diff/delta_shadow_boundary.h"
+#include "core/diff/environment_shadow_boundary.h"
 #include "core/diff/pass_driver.h"
 #include "core/diff/primary_boundary.h"
 #include "core/diff/render_cost.h"
@@ -57,10 +58,6 @@ void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const Gr
   if (o.pixels.sampler != PixelSampler::All)
     throw InputError(what + "the boundary terms need dLoss/dI at every pixel; use pixel_sampler all");
   if (o.variance.enabled) throw InputError(what + "variance-aware losses have no shape derivatives yet");
-  for (const Light& l : scene.lights)
-    if (l.kind == LightKind::Environment || l.kind == LightKind::ConstantEnvironment)
-      throw InputError(what + "light '" + l.name + "' is an environment: the shadows moving shapes cast in it have no boundary estimator yet "
-                              "(point, spot and area lights do)");
   for (uint32_t m : params.movingMeshes()) {
     const Material& mat = scene.materials[size_t(scene.meshMaterial[m])];
     if (mat.kind != BsdfKind::Diffuse || !mat.albedo.isConstant())
@@ -315,6 +312,10 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
         count(AreaShadowBoundary(scene_, params_, topology_)
                   .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, Stream::AreaShadowBoundary), req.step, *scratch_,
                        out.gradient, req.cancel));
+      if (bo.secondary && EnvironmentShadowBoundary::applies(scene_))
+        count(EnvironmentShadowBoundary(scene_, params_, topology_)
+                  .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, Stream::EnvironmentShadowBoundary), req.step,
+                       *scratch_, out.gradient, req.cancel));
     }
     if (edgeSampler && restirDerivative) {
       // Alg. 8: the previous step's reservoirs whose p1 no view of this batch sees stay, unless the

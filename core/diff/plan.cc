@@ -86,10 +86,11 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   if (shapes) {
     const auto& b = g.boundary;
     const std::string n = std::to_string(b.samplesFor(s.width, s.height));
-    bool delta = false, area = false;
+    bool delta = false, area = false, environment = false;
     for (const Light& l : s.lights) {
       delta = delta || l.isDelta();
       area = area || l.kind == LightKind::Area;
+      environment = environment || l.isInfinite();
     }
     est.push_back(b.primary ? "boundary, primary (Eq. 9-11): " + n + " edge samples per view and step on silhouette and crease edges of moving "
                                   "meshes, by clipped film length, hidden edge points skipped; both sides traced with the interior estimator; box pixel "
@@ -118,6 +119,9 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
                              : std::string("; edges by length")) +
                       "; jump evaluated directly");
       }
+      if (environment)
+        est.push_back("boundary, secondary, environment lights: " + n + " samples per view and step over the silhouette edges of " +
+                      std::to_string(b.lightPoints) + " directions per pass drawn by the environment's sampling, jump evaluated directly");
     }
     if (g.method == GradientMethod::Restir)
       est.push_back(b.multiViewShortcut

@@ -27,7 +27,7 @@ Rgb shadeFilmSample(const Scene& scene, const Camera& cam, float fx, float fy, R
 }
 }  // namespace
 
-void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, Vec3 source,
+void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, ShadowSource source,
                         uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh) {
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     if (m == skipMesh || m >= topology.size() || topology[m].edges().empty()) continue;
@@ -35,11 +35,11 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
     std::vector<Vec3> normals(mesh.triangleCount());
     for (uint32_t f = 0; f < normals.size(); ++f) normals[f] = scene.faceNormal(m, f);
     for (const MeshEdge& e : topology[m].edges()) {
-      if (!EdgeTopology::silhouetteFrom(e, mesh, normals, source)) continue;
+      if (!EdgeTopology::silhouetteTowards(e, normals, source.from(mesh.positions[e.v0]))) continue;
       ShadowEdge se{sourceIndex, m, mesh.positions[e.v0], mesh.positions[e.v1]};
       const float len = length(se.b - se.a);
       if (!(len > 0.f)) continue;
-      const Vec3 mid = (se.a + se.b) * 0.5f, dir = normalize(mid - source);
+      const Vec3 mid = (se.a + se.b) * 0.5f, dir = -normalize(source.from(mid));
       SurfaceHit hit;
       const bool falls = scene.intersect(mid + dir * offsetAt(mid), dir, hit);
       const bool moving = params.moves(m) || (falls && params.moves(hit.mesh));
@@ -49,14 +49,15 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
   }
 }
 
-bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, Vec3 l, const ShadowEdge& se, float t,
+bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
                        ShadowBorderPoint& bp) {
   const int W = scene.width, H = scene.height;
   bp.e = se.a + (se.b - se.a) * t;
-  bp.toE = bp.e - l;
+  bp.toE = -source.from(bp.e);
   const float distE = length(bp.toE);
   if (!(distE > 0.f)) return false;
   const Vec3 dir = bp.toE / distE;
+  if (source.directional) bp.toE = dir;
   // Started just past the edge so the grazing faces of the edge itself are not hit.
   if (!scene.intersect(bp.e + dir * offsetAt(bp.e), dir, bp.hit)) return false;
   if (!params.moves(se.mesh) && !params.moves(bp.hit.mesh)) return false;  // nothing here moves
@@ -74,8 +75,8 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   if (scene.occludedSegment(offsetOrigin(y, nr, cam.eye - y), cam.eye, toCam, camDist)) return false;
   // The source lights y only from the side the camera sees it from; on the other side both sides
   // of the border are dark.
-  if (!(dot(nr, l - y) * dot(nr, cam.eye - y) > 0.f)) return false;
-  bp.s = length(y - l) / distE;
+  if (!(dot(nr, source.from(y)) * dot(nr, cam.eye - y) > 0.f)) return false;
+  bp.s = source.directional ? 1.f : length(y - source.v) / distE;
   // Film tangent of the curve: dy/dt = ds/dt (e - l) + s (b - a), ray-plane at y.
   const Vec3 de = se.b - se.a;
   const Vec3 dydt = bp.toE * (-bp.s * dot(nr, de) / bp.denom) + de * bp.s;
@@ -113,6 +114,15 @@ Rgb deltaSourceRadiance(const Scene& scene, const Camera& cam, float fx, float f
     if (isBlack(f)) return Rgb(0.f);
     ++rays.shadow;
     return traceShadow(scene, sp, ls, nullptr) ? Rgb(0.f) : f * ls.radiance;
+  });
+}
+
+Rgb directionalSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const LightSample& ls, RayStats& rays) {
+  return shadeFilmSample(scene, cam, fx, fy, rays, [&](const ShadingPoint& sp) {
+    const Rgb f = bsdfTowards(sp, ls.wi);
+    if (isBlack(f) || isBlack(ls.radiance)) return Rgb(0.f);
+    ++rays.shadow;
+    return scene.occludedDirection(Scene::shadowOrigin(sp.hit->p, sp.hit->ng, ls.wi), ls.wi) ? Rgb(0.f) : f * ls.radiance;
   });
 }
 

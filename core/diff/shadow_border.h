@@ -1,13 +1,16 @@
 // What the shadow-boundary estimators (delta_shadow_boundary.h for point and spot lights,
-// area_shadow_boundary.h for points sampled on area lights) share: the silhouette edges an
-// occluder shows a point source, and the border point a (source, edge, t) sample lands on.
+// area_shadow_boundary.h for points sampled on area lights, environment_shadow_boundary.h for
+// directions sampled on environments) share: the silhouette edges an occluder shows a source, and
+// the border point a (source, edge, t) sample lands on.
 //
 // For a source at l and an occluder edge a-b, e(t) = a + t (b - a), the shadow point y(t) is the
 // first surface the ray l -> e(t) meets beyond e, and x(t) its film position. Across the film
 // curve x(t) what the pixel sees from that source jumps; Reynolds transport gives
 //     d/dtheta sum_p w_p I_p = ∫ w(x) ΔL(x) (v . perp(dx/dt)) dt,
 // with v the film velocity of the curve, from dy/dtheta by the ray-plane intersection at y given
-// the occluder's velocity at e and the receiver's at y (either or both may move).
+// the occluder's velocity at e and the receiver's at y (either or both may move). A source at
+// infinity in direction w is the same with the ray e(t) - t' w: y = e + s' d for the fixed
+// travel direction d = -w, whose derivative is the point source's with (e - l) -> d and s -> 1.
 #pragma once
 
 #include <vector>
@@ -19,6 +22,17 @@
 #include "core/scene/scene.h"
 
 namespace invr {
+
+// Where a shadow-casting source is: a point (point and spot lights, points on area lights), or a
+// direction towards a source at infinity (environments).
+struct ShadowSource {
+  Vec3 v;
+  bool directional = false;
+  static ShadowSource at(Vec3 p) { return {p, false}; }
+  static ShadowSource towards(Vec3 w) { return {w, true}; }
+  // From x towards the source (not normalised).
+  Vec3 from(Vec3 x) const { return directional ? v : v - x; }
+};
 
 struct ShadowEdge {
   uint32_t source;  // which point source (the estimator's own index)
@@ -32,24 +46,24 @@ struct ShadowEdge {
 constexpr float kUnlikelyShadowEdgeWeight = 0.05f;
 
 // Appends the silhouette edges every mesh with a topology (but `skipMesh`: the emitter a source
-// lies on) shows the point source at `source`.
-void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, Vec3 source,
+// lies on) shows `source`.
+void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, ShadowSource source,
                         uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh = UINT32_MAX);
 
 struct ShadowBorderPoint {
-  Vec3 e, toE;       // the edge point and e - l
+  Vec3 e, toE;       // the edge point and e - l (directional sources: the unit travel direction d)
   SurfaceHit hit;    // the shadow point y on its receiver
-  float s = 0.f;     // |y - l| / |e - l|
-  float denom = 0.f; // nr . (e - l)
+  float s = 0.f;     // |y - l| / |e - l| (directional: 1)
+  float denom = 0.f; // nr . toE
   Vec2 x, n;         // film position and the unit film normal of the border there
   float speed = 0.f; // |dx/dt| in pixels
   float eps = 0.f;   // how far (pixels) each side is sampled from x
   Vec3 jx, jy;       // d(film x, y)/dy
 };
 
-// The border point of edge `se` at t for a source at l; false when there is none on the film
-// or nothing there moves.
-bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, Vec3 l, const ShadowEdge& se, float t,
+// The border point of edge `se` at t for `source`; false when there is none on the film or
+// nothing there moves.
+bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
                        ShadowBorderPoint& out);
 
 // Adds w * (n . J dy/dtheta) for the occluder's and the receiver's shape parameters, where w is
@@ -74,5 +88,9 @@ struct LightPoint {
 // What the point source at y (a point of area light l, intensity Le(y) |cos_y| dA) adds to the
 // film sample through (fx, fy): f |cos_x| Le(y) |cos_y| / r^2, visibility included.
 Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays);
+
+// What the environment's direction `ls.wi` (radiance ls.radiance, dist infinite) adds to the film
+// sample through (fx, fy): f |cos| Le, visibility included (per unit solid angle).
+Rgb directionalSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const LightSample& ls, RayStats& rays);
 
 }  // namespace invr

@@ -118,9 +118,12 @@ EdgeTopology EdgeTopology::build(const TriangleMesh& mesh, float weldTolerance) 
 }
 
 bool EdgeTopology::silhouetteFrom(const MeshEdge& e, const TriangleMesh& mesh, const std::vector<Vec3>& faceNormals, Vec3 o) {
+  return silhouetteTowards(e, faceNormals, o - mesh.positions[e.v0]);
+}
+
+bool EdgeTopology::silhouetteTowards(const MeshEdge& e, const std::vector<Vec3>& faceNormals, Vec3 towards) {
   if (e.boundary()) return true;
-  Vec3 toO = o - mesh.positions[e.v0];
-  float s0 = dot(faceNormals[e.face0], toO), s1 = dot(faceNormals[e.face1], toO);
+  const float s0 = dot(faceNormals[e.face0], towards), s1 = dot(faceNormals[e.face1], towards);
   return (s0 > 0.f) != (s1 > 0.f);
 }
 

@@ -44,6 +44,8 @@ class EdgeTopology {
   // a silhouette (visibility discontinuity). Boundary edges always are. faceNormals: per triangle,
   // in the mesh's current pose.
   static bool silhouetteFrom(const MeshEdge& e, const TriangleMesh& mesh, const std::vector<Vec3>& faceNormals, Vec3 o);
+  // The same for a source at infinity: `towards` is the direction to it (environment lights).
+  static bool silhouetteTowards(const MeshEdge& e, const std::vector<Vec3>& faceNormals, Vec3 towards);
 
  private:
   std::vector<MeshEdge> edges_;

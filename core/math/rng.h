@@ -30,6 +30,7 @@ enum class Stream : uint64_t {
   PrimaryBoundary = 12,  // shape derivatives: edge samples of the primary boundary term
   DeltaShadowBoundary = 13,  // point and spot light shadow borders
   AreaShadowBoundary = 14,   // area light shadow borders
+  EnvironmentShadowBoundary = 15,  // environment light shadow borders
 };
 
 // The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as

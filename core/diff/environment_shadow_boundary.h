@@ -1,0 +1,34 @@
+// The secondary boundary term for environment lights (ours: the paper's Eq. 21-26 cover area
+// lights). An environment's image is the integral over directions w of the image a source at
+// infinity in direction w (radiance Le(w) per unit solid angle) makes, so the derivative of its
+// visibility is the integral over w of that directional source's shadow-border term
+// (shadow_border.h, with the travel direction -w in place of l -> e). A pass draws `directions`
+// directions w_j by the environment's own sampling (an environment light uniformly, then w by its
+// importance map; uniform on the sphere for a constant one), collects each one's silhouette edges,
+// and samples (j, edge, t) from the union. The jump across the border is that direction's
+// contribution f |cos| Le on each side, evaluated directly (one camera and one shadow ray a side),
+// so no other light's noise enters it. Unbiased for any number of directions >= 1.
+#pragma once
+
+#include "core/diff/boundary_sampling.h"
+#include "core/geometry/edge_topology.h"
+
+namespace invr {
+
+class EnvironmentShadowBoundary {
+ public:
+  EnvironmentShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
+
+  // Whether the scene has an environment light (else the estimator has nothing to do).
+  static bool applies(const Scene& scene);
+
+  BoundaryPassStats run(int view, const Image& adjoint, int samples, int directions, uint64_t stream, uint64_t step,
+                        GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel = nullptr) const;
+
+ private:
+  const Scene& scene_;
+  const ParameterRegistry& params_;
+  const std::vector<EdgeTopology>& topology_;
+};
+
+}  // namespace invr
