@@ -36,9 +36,9 @@ struct VarianceOptions {
 // docs/differentiable-rendering.md). primary/secondary switch the terms off for ablations.
 struct BoundaryOptions {
   bool primary = true;    // silhouette and crease edges of moving meshes seen by the camera
-  bool secondary = true;  // shadow borders of point, spot and area lights
+  bool secondary = true;  // shadow borders of point, spot, area and environment lights
   int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
-  int lightPoints = 16;   // area lights: light points per pass whose shadow borders are sampled
+  int lightPoints = 16;   // light points (area lights) and directions (environments) per pass whose shadow borders are sampled
   // ReSTIR: test the support of reused samples in the current geometry (the paper's multi-view
   // shortcut, §3.2), which is biased once geometry moves. Default: in the geometry each sample was
   // created in (unbiased; the reservoir store keeps the moving meshes' poses for that).
