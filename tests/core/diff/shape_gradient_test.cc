@@ -52,6 +52,10 @@ const char* kLampShape =
     R"(, {"name": "lamp", "quad": {}, "material": "white", "transform": {"scale": {"x": 0.15, "y": 0.15, "z": 1}, "rotate_xyz_degrees": {"x": 180}, "translate": {"x": 1.2, "y": -0.3, "z": 4}}})";
 const char* kAreaLight = R"({"name": "lamp", "area": {"shape": "lamp", "radiance": {"r": 130, "g": 130, "b": 130}}})";
 const char* kSky = R"({"name": "sky", "constant_environment": {"radiance": {"r": 1.5, "g": 1.5, "b": 1.5}}})";
+// A dim sky with a sun-like lobe (the zoo's backlit_sky), turned so the sun stands 40° from the
+// zenith: drawn by the map's importance sampling.
+const char* kSunSky = R"({"name": "sky", "environment": {"rotate_y_degrees": %s, "radiance": {"procedural": {"pattern": "backlit_sky",
+  "width": 256, "height": 128, "color_a": {"r": 20, "g": 20, "b": 20}, "color_b": {"r": 0.3, "g": 0.3, "b": 0.35}}}}})";
 
 // Turned about z: an edge (or its shadow) parallel to the pixel grid crosses a whole column of
 // pixel borders at once, which puts a kink in the loss every pixel it moves; the h vs h/2 check
@@ -65,10 +69,12 @@ std::string cardScene(bool area, bool inView = true) {
   return buf;
 }
 
-// The card under a constant sky: its soft shadow (and the box's) on the floor. `card` as above.
-std::string skyScene(const char* card) {
-  char buf[4096];
-  std::snprintf(buf, sizeof buf, kCardTemplate, card, "", kSky);
+// The card under a constant sky, or the sun-lobe sky turned by `sunTurn` degrees about y: its
+// soft shadow (and the box's) on the floor. `card` as above.
+std::string skyScene(const char* card, const char* sunTurn = nullptr) {
+  char light[1024], buf[4096];
+  if (sunTurn) std::snprintf(light, sizeof light, kSunSky, sunTurn);
+  std::snprintf(buf, sizeof buf, kCardTemplate, card, "", sunTurn ? light : kSky);
   return buf;
 }
 
@@ -224,11 +230,12 @@ TEST(ShapeGradient, CardMovingUnderASmallAreaLight) {
 // Under an environment the shadow borders are an integral over the sky's directions
 // (environment_shadow_boundary.h). The card low over the floor, out of view beside it, so the
 // edge of its soft shadow that reaches into the view is the whole derivative (without the
-// secondary term the estimate is 0); then the card in view, where all terms add (there the
-// shadow's share is about 2 %, inside the noise).
+// secondary term the estimate is 0): under a constant sky (directions uniform on the sphere) and
+// under a map with a sun-like lobe (directions by the map's importance sampling). Then the card
+// in view under the constant sky, where all terms add (the shadow's share is about 2 % there).
 const char* kCardLowBesideTheView = R"({"scale": {"x": 0.5, "y": 0.5, "z": 1}, "rotate_xyz_degrees": {"z": 17}, "translate": {"x": 2.0, "z": 0.4}})";
 
-TEST(ShapeGradient, ShadowUnderAConstantEnvironment) {
+TEST(ShapeGradient, ShadowsUnderEnvironments) {
   {
     ShapeCase c(skyScene(kCardLowBesideTheView), "shapes/card/translation", {0.25f, -0.04f, 0.05f});
     const MeanSE fd = validatedFd(c, 0, 0.01f, "card beside the view, sky, x");
@@ -241,6 +248,15 @@ TEST(ShapeGradient, ShadowUnderAConstantEnvironment) {
     GradientOptions noSecondary = shapeOptions(GradientMethod::Pt);
     noSecondary.boundary.secondary = false;
     EXPECT_FALSE(run(c, 0, fd, noSecondary, 96, "pt without the secondary term").agrees());
+  }
+  {
+    // The sun on the card's side (+x), so its sharper shadow falls into the view.
+    ShapeCase c(skyScene(kCardLowBesideTheView, "40"), "shapes/card/translation", {0.25f, -0.04f, 0.05f});
+    const MeanSE fd = validatedFd(c, 0, 0.01f, "card beside the view, sun-lobe sky map, x");
+    GradientOptions o = shapeOptions(GradientMethod::Pt);
+    o.boundary.samples = 8192;
+    o.boundary.lightPoints = 64;
+    expectMatches(run(c, 0, fd, o, 128, "pt, sky map"), "pt, sky map");
   }
   ShapeCase c(skyScene(kCardInView), "shapes/card/translation", {0.08f, -0.05f, 0.1f});
   const MeanSE fd = validatedFd(c, 0, 0.01f, "card in view, sky, x");
