@@ -1,14 +1,11 @@
 #include "core/diff/area_shadow_boundary.h"
 
 #include <algorithm>
-#include <cmath>
 
 #include "core/diff/shadow_border.h"
 #include "core/math/sampling.h"
-#include "core/render/direct_light.h"
 
 namespace invr {
-
 
 AreaShadowBoundary::AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
     : scene_(scene), params_(params), topology_(topology) {}
@@ -20,18 +17,15 @@ bool AreaShadowBoundary::applies(const Scene& scene) {
 }
 
 BoundaryPassStats AreaShadowBoundary::run(int view, const Image& adjoint, int samples, int lightPoints, uint64_t stream, uint64_t step,
-                                          GradientScratchPool& scratchPool, std::vector<double>& gradient,
-                                          const std::atomic<bool>* cancel) const {
+                                          GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel) const {
   const Camera& cam = scene_.cameras[size_t(view)];
-  BoundaryPassStats st;
   std::vector<float> power(scene_.lights.size());
   for (size_t i = 0; i < power.size(); ++i) power[i] = emittedPower(scene_.lights[i]);
-  if (samples <= 0 || lightPoints <= 0 || *std::max_element(power.begin(), power.end()) <= 0.f) return st;
+  if (samples <= 0 || lightPoints <= 0 || *std::max_element(power.begin(), power.end()) <= 0.f) return {};
   const Distribution1D pickLight(power);
   // The pass's light points: keyed by the step, view and point index (not by thread).
   std::vector<LightPoint> points;
-  std::vector<ShadowEdge> edges;
-  std::vector<float> weights;
+  std::vector<BorderSource> sources;
   for (int j = 0; j < lightPoints; ++j) {
     Sampler s(RngKey{stream, step, uint64_t(view), uint64_t(j), 1});
     const uint32_t li = uint32_t(pickLight.sample(s.next1D()));
@@ -42,33 +36,15 @@ BoundaryPassStats AreaShadowBoundary::run(int view, const Image& adjoint, int sa
     const Vec2 bc = sampleUniformTriangle({remapped, v});
     const SurfaceHit y = scene_.surfaceAt(l.mesh, tri, bc.x, bc.y);
     points.push_back({li, y.p, y.ng, double(pickLight.pmf(li)) / double(l.area)});
-    collectShadowEdges(scene_, params_, topology_, ShadowSource::at(y.p), uint32_t(j), edges, weights, l.mesh);
+    // The density of y_j over the pass's lightPoints draws.
+    sources.push_back({ShadowSource::at(y.p), 1.0 / (points.back().pdf * double(lightPoints)), l.mesh});
   }
-  st.candidateEdges = edges.size();
-  if (edges.empty()) return st;
-  const Distribution1D pick(weights);
-
-  runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
-    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
-    float t = 0.f;
-    const size_t k = pick.sample(sampler.next1D(), &t);
-    const ShadowEdge& se = edges[k];
-    const LightPoint& lp = points[se.source];
-    ShadowBorderPoint bp;
-    if (!shadowBorderPoint(scene_, params_, cam, ShadowSource::at(lp.y), se, t, bp)) return;
-    const Light& l = scene_.lights[lp.light];
-    const Rgb minus = pointSourceRadiance(scene_, cam, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, l, lp, counters.rays);
-    const Rgb plus = pointSourceRadiance(scene_, cam, bp.x.x + bp.eps * bp.n.x, bp.x.y + bp.eps * bp.n.y, l, lp, counters.rays);
-    const Rgb diff = minus - plus;
-    if (isBlack(diff)) return;
-    const int px = std::clamp(int(bp.x.x), 0, scene_.width - 1), py = std::clamp(int(bp.x.y), 0, scene_.height - 1);
-    const Rgb adj = adjoint.rgb(px, py);
-    // pdf of (j, edge, t) times the density of y_j, over the pass's lightPoints draws.
-    const double pdf = double(pick.pmf(k)) * lp.pdf * double(lightPoints);
-    const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) / (pdf * double(samples));
-    if (w != 0.0) addShadowBorderGradient(scene_, params_, se, bp, w, grad);
-  });
-  return st;
+  return sampleShadowBorders(
+      scene_, params_, topology_, view, adjoint, samples, sources,
+      [&](uint32_t j, float fx, float fy, RayStats& rays) {
+        return pointSourceRadiance(scene_, cam, fx, fy, scene_.lights[points[j].light], points[j], rays);
+      },
+      stream, step, scratch, gradient, cancel);
 }
 
 }  // namespace invr

@@ -9,8 +9,8 @@
 // light-sampling noise in it. Unbiased for any lightPoints >= 1; more points spread the samples
 // over more of the penumbra.
 //
-// The paper's variance reduction on top of this sampling (edge reservoirs reused across steps,
-// Alg. 6; edge importance, Eq. 27; Alg. 8 preservation) is not built yet.
+// This is AREA_SAMPLING_LIGHT_POINTS; the default samples an edge point first and reuses edge
+// reservoirs across steps (edge_reservoir_boundary.h: Alg. 6, Eq. 27, Alg. 8).
 #pragma once
 
 #include "core/diff/boundary_sampling.h"

@@ -5,6 +5,7 @@
 
 #include "core/diff/film_projection.h"
 #include "core/diff/primary_boundary.h"
+#include "core/math/sampling.h"
 #include "core/render/direct_light.h"
 
 namespace invr {
@@ -104,6 +105,40 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
   const float c = dot(g, bp.toE) / bp.denom;
   params.addPointGradient(scene, se.mesh, bp.e, (g - nr * c) * bp.s, grad);
   params.addPointGradient(scene, bp.hit.mesh, bp.hit.p, nr * c, grad);
+}
+
+BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
+                                      int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
+                                      const BorderSourceRadiance& radiance, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
+                                      std::vector<double>& gradient, const std::atomic<bool>* cancel) {
+  const Camera& cam = scene.cameras[size_t(view)];
+  BoundaryPassStats st;
+  std::vector<ShadowEdge> edges;
+  std::vector<float> weights;
+  for (uint32_t j = 0; j < sources.size(); ++j)
+    if (sources[j].weight > 0.0) collectShadowEdges(scene, params, topology, sources[j].at, j, edges, weights, sources[j].skipMesh);
+  st.candidateEdges = edges.size();
+  if (edges.empty() || samples <= 0) return st;
+  const Distribution1D pick(weights);
+
+  runBoundarySamples(samples, scratch, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
+    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+    float t = 0.f;
+    const size_t k = pick.sample(sampler.next1D(), &t);
+    const ShadowEdge& se = edges[k];
+    const BorderSource& src = sources[se.source];
+    ShadowBorderPoint bp;
+    if (!shadowBorderPoint(scene, params, cam, src.at, se, t, bp)) return;
+    const Rgb minus = radiance(se.source, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, counters.rays);
+    const Rgb plus = radiance(se.source, bp.x.x + bp.eps * bp.n.x, bp.x.y + bp.eps * bp.n.y, counters.rays);
+    const Rgb diff = minus - plus;
+    if (isBlack(diff)) return;
+    const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, scene.width - 1), std::clamp(int(bp.x.y), 0, scene.height - 1));
+    // pdf of (source, edge, t): the edge's probability (t is uniform on [0, 1]).
+    const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) * src.weight / (double(pick.pmf(k)) * double(samples));
+    if (w != 0.0) addShadowBorderGradient(scene, params, se, bp, w, grad);
+  });
+  return st;
 }
 
 Rgb deltaSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, RayStats& rays) {

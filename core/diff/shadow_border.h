@@ -13,8 +13,11 @@
 // travel direction d = -w, whose derivative is the point source's with (e - l) -> d and s -> 1.
 #pragma once
 
+#include <atomic>
+#include <functional>
 #include <vector>
 
+#include "core/diff/boundary_sampling.h"
 #include "core/diff/gradient_sink.h"
 #include "core/diff/parameters.h"
 #include "core/geometry/edge_topology.h"
@@ -88,6 +91,26 @@ struct LightPoint {
 // What the point source at y (a point of area light l, intensity Le(y) |cos_y| dA) adds to the
 // film sample through (fx, fy): f |cos_x| Le(y) |cos_y| / r^2, visibility included.
 Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays);
+
+// A source whose shadow borders a pass samples: a delta light, or one of the points (directions)
+// a pass drew on an area light (an environment).
+struct BorderSource {
+  ShadowSource at;
+  double weight = 1.0;  // 1 / (its density times the number drawn); 1 for a delta light
+  uint32_t skipMesh = UINT32_MAX;  // the emitter the source lies on
+};
+
+// What `source` adds to the film sample through (fx, fy), visibility included.
+using BorderSourceRadiance = std::function<Rgb(uint32_t source, float fx, float fy, RayStats& rays)>;
+
+// The pass the shadow-border estimators share: collects every source's silhouette edges, samples
+// (source, edge, t) by their weights and t uniformly, measures the jump of that source's radiance
+// across the border (one film sample a side), and adds adjoint . jump * speed * weight / pdf
+// through addShadowBorderGradient. Sample i uses the key (stream, step, view, i).
+BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
+                                      int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
+                                      const BorderSourceRadiance& radiance, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
+                                      std::vector<double>& gradient, const std::atomic<bool>* cancel);
 
 // What the environment's direction `ls.wi` (radiance ls.radiance, dist infinite) adds to the film
 // sample through (fx, fy): f |cos| Le, visibility included (per unit solid angle).
