@@ -1,30 +1,13 @@
 #include "core/restir/edge_reservoir.h"
 
 #include <algorithm>
-#include <nanoflann.hpp>
+
+#include "core/restir/point_kd_tree.h"
 
 namespace invr {
 
-namespace {
-
-struct EdgePoints {
-  std::vector<float> xyz;
-  size_t kdtree_get_point_count() const { return xyz.size() / 3; }
-  float kdtree_get_pt(size_t i, size_t dim) const { return xyz[3 * i + dim]; }
-  template <class BBox>
-  bool kdtree_get_bbox(BBox&) const { return false; }
-};
-
-using EdgeKdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, EdgePoints>, EdgePoints, 3, uint32_t>;
-
-}  // namespace
-
-struct EdgeReservoirSet::Index {
-  EdgePoints cloud;
-  EdgeKdTree tree;
-  explicit Index(std::vector<float> xyz) : cloud{std::move(xyz)}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {
-    tree.buildIndex();
-  }
+struct EdgeReservoirSet::Index : PointKdIndex {
+  explicit Index(std::vector<float> xyz) : PointKdIndex(std::move(xyz), 16) {}
 };
 
 EdgeReservoirSet::EdgeReservoirSet() = default;

@@ -1,25 +1,13 @@
 #include "core/restir/reservoir_store.h"
 
 #include <algorithm>
-#include <nanoflann.hpp>
 
 #include "core/error.h"
+#include "core/restir/point_kd_tree.h"
 
 namespace invr {
 
 namespace {
-
-// The tree indexes a packed copy of the positions: the build and every search touch 12 bytes per
-// point instead of a whole StoredReservoir.
-struct PointCloud {
-  std::vector<float> xyz;
-  size_t kdtree_get_point_count() const { return xyz.size() / 3; }
-  float kdtree_get_pt(size_t i, size_t dim) const { return xyz[3 * i + dim]; }
-  template <class BBox>
-  bool kdtree_get_bbox(BBox&) const { return false; }
-};
-
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloud>, PointCloud, 3, uint32_t>;
 
 // The first `capacity` points found within a radius. The search descends to the query's own leaf
 // first, so these are near the query (usually the closest few), and it stops as soon as it has
@@ -51,13 +39,8 @@ class FirstWithinRadius {
 
 }  // namespace
 
-struct ReservoirStore::Index {
-  PointCloud cloud;
-  KdTree tree;
-  explicit Index(const std::vector<StoredReservoir>& items)
-      : cloud{packed(items)}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(64)) {
-    tree.buildIndex();
-  }
+struct ReservoirStore::Index : PointKdIndex {
+  explicit Index(const std::vector<StoredReservoir>& items) : PointKdIndex(packed(items), 64) {}
   static std::vector<float> packed(const std::vector<StoredReservoir>& items) {
     std::vector<float> xyz(items.size() * 3);
     for (size_t i = 0; i < items.size(); ++i)
