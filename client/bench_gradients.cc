@@ -134,25 +134,21 @@ BenchReport benchGradients(const GradientsArgs& a) {
   // Each method's relMSE is a mean over `reps` gradient evaluations, with its standard error.
   // Consecutive ReSTIR steps share reservoirs and so are correlated; ReSTIR therefore runs
   // `restirChains` independent chains (own seed, own burn-in) and its standard error comes from the
-  // chain means, which are independent.
-  std::vector<double> relmse(3), relmseSe(3), seconds(3);
-  for (int mi = 0; mi < 3; ++mi) {
-    GradientMethod m = kMethods[mi];
-    int spp = 1;
-    if (m != GradientMethod::Restir) spp = std::max(1, int(std::lround(budget / stepSeconds(s, m, 1, 0))));
-    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, m, spp));
-    const bool restir = m == GradientMethod::Restir;
+  // chain means, which are independent. measure(): relMSE of one setting over `reps` evaluations,
+  // its standard error and the seconds per step.
+  auto measure = [&](const GradientOptions& o) {
+    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, o);
+    const bool restir = o.method == GradientMethod::Restir;
     const int chains = restir ? std::max(1, std::min(a.restirChains, a.reps)) : a.reps;
     const int perChain = std::max(1, a.reps / chains);
     std::vector<double> groupMeans;
     double secs = 0;
-    int evaluations = 0;
     for (int c = 0; c < chains; ++c) {
       EngineSession session;
       GradientRequest r;
       r.views = views;
       r.seed = 12345 + uint64_t(c) * 7919;
-      int burn = restir ? a.burnIn : 0;
+      const int burn = restir ? a.burnIn : 0;
       for (int b = 0; b < burn; ++b) {
         GradientRequest rb = r;
         rb.renderOnly = true;
@@ -165,7 +161,6 @@ BenchReport benchGradients(const GradientsArgs& a) {
         auto t0 = Clock::now();
         auto g = engine.evaluate(r, session).gradient;
         secs += since(t0);
-        ++evaluations;
         groupErr += relativeSquaredError(g, ref) / perChain;
       }
       groupMeans.push_back(groupErr);
@@ -173,9 +168,17 @@ BenchReport benchGradients(const GradientsArgs& a) {
     double mean = 0, var = 0;
     for (double e : groupMeans) mean += e / double(groupMeans.size());
     for (double e : groupMeans) var += (e - mean) * (e - mean) / double(std::max<size_t>(1, groupMeans.size() - 1));
-    relmse[size_t(mi)] = mean;
-    relmseSe[size_t(mi)] = std::sqrt(var / double(groupMeans.size()));
-    seconds[size_t(mi)] = secs / evaluations;
+    return std::array<double, 3>{mean, std::sqrt(var / double(groupMeans.size())), secs / double(chains * perChain)};
+  };
+  std::vector<double> relmse(3), relmseSe(3), seconds(3);
+  for (int mi = 0; mi < 3; ++mi) {
+    GradientMethod m = kMethods[mi];
+    int spp = 1;
+    if (m != GradientMethod::Restir) spp = std::max(1, int(std::lround(budget / stepSeconds(s, m, 1, 0))));
+    const auto result = measure(optionsFor(s.problem, m, spp));
+    relmse[size_t(mi)] = result[0];
+    relmseSe[size_t(mi)] = result[1];
+    seconds[size_t(mi)] = result[2];
     std::string name = gradientMethodName(m);
     rep.number("spp_" + name, spp);
     rep.number("seconds_per_step_" + name, seconds[size_t(mi)], "s");
@@ -205,39 +208,6 @@ BenchReport benchGradients(const GradientsArgs& a) {
   // with the light-points-first shadow sampling, at the same settings and steps as ReSTIR above. A
   // term switched off shows as bias: its relMSE stays high however many steps are averaged.
   if (s.problem.params.hasShapeParameters() && a.ablations) {
-    auto measure = [&](GradientOptions o) {
-      GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, o);
-      const bool restir = o.method == GradientMethod::Restir;
-      const int chains = restir ? std::max(1, std::min(a.restirChains, a.reps)) : a.reps;
-      const int perChain = std::max(1, a.reps / chains);
-      std::vector<double> groupMeans;
-      double secs = 0;
-      for (int c = 0; c < chains; ++c) {
-        EngineSession session;
-        GradientRequest r;
-        r.views = views;
-        r.seed = 12345 + uint64_t(c) * 7919;
-        const int burn = restir ? a.burnIn : 0;
-        for (int b = 0; b < burn; ++b) {
-          GradientRequest rb = r;
-          rb.renderOnly = true;
-          rb.step = uint64_t(b);
-          engine.evaluate(rb, session);
-        }
-        double groupErr = 0;
-        for (int i = 0; i < perChain; ++i) {
-          r.step = uint64_t(burn + i);
-          auto t0 = Clock::now();
-          groupErr += relativeSquaredError(engine.evaluate(r, session).gradient, ref) / perChain;
-          secs += since(t0);
-        }
-        groupMeans.push_back(groupErr);
-      }
-      double mean = 0, var = 0;
-      for (double e : groupMeans) mean += e / double(groupMeans.size());
-      for (double e : groupMeans) var += (e - mean) * (e - mean) / double(std::max<size_t>(1, groupMeans.size() - 1));
-      return std::array<double, 3>{mean, std::sqrt(var / double(groupMeans.size())), secs / double(chains * perChain)};
-    };
     BenchReport::Json rows = BenchReport::Json::object();
     std::string line;
     auto row = [&](const std::string& name, const GradientOptions& o) {
