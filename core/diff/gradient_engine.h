@@ -66,7 +66,7 @@ struct GradientStats {
   size_t reservoirsCarried = 0;  // of the preserved: kept because their pixel was not drawn (pixel mini-batches)
   double meanNeighbours = 0, meanM = 0;
   int kdTreesBuilt = 0;  // ReSTIR chains that needed their kd-tree this step (0-2)
-  // Shape parameters: the boundary passes (primary, point/spot and area shadow borders).
+  // Shape parameters: the boundary passes (primary; point/spot, area and environment shadow borders).
   double secondsBoundary = 0;
   uint64_t boundaryEdges = 0;    // candidate edges the passes sampled from, summed over views and terms
   uint64_t boundarySamples = 0;

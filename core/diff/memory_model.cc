@@ -34,11 +34,11 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   // thread: one walk's decision records (variance_visitor.h), at most a few hundred bytes per vertex.
   if (g.variance.enabled) w.variance = double(maxShard) * pixels * 12 * 4 + double(threads) * double(g.maxDepth + 1) * 512;
   // Shape parameters: 1.5 welded edges per triangle (MeshEdge, 20 bytes) plus the weld map per
-  // vertex; a pass's candidate lists hold at most every edge once per light point (ShadowEdge, 32
-  // bytes, and its weight), and the film-space primary candidates.
+  // vertex; a pass's candidate lists hold at most every edge once per light point or environment
+  // direction (ShadowEdge, 32 bytes, and its weight), and the film-space primary candidates.
   if (p.params.hasShapeParameters()) {
     double points = 0;
-    for (const Light& l : s.lights) points += l.kind == LightKind::Area ? double(g.boundary.lightPoints) : l.isDelta() ? 1.0 : 0.0;
+    for (const Light& l : s.lights) points += l.kind == LightKind::Area || l.isInfinite() ? double(g.boundary.lightPoints) : l.isDelta() ? 1.0 : 0.0;
     w.boundary = tris * 1.5 * 20 + tris * 3 * 4 + tris * 1.5 * (points + 1) * 36;
     // Edge reservoirs (restir, edge-first area shadows): one per secondary sample and view of a
     // shard, this step's and the previous step's with its kd-tree, Alg. 8 survivors at most

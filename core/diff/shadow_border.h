@@ -38,7 +38,7 @@ struct ShadowSource {
 };
 
 struct ShadowEdge {
-  uint32_t source;  // which point source (the estimator's own index)
+  uint32_t source;  // index into the pass's sources (BorderSource list)
   uint32_t mesh;
   Vec3 a, b;
 };

@@ -20,7 +20,8 @@ struct PackedPoints {
 
 using PointKdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PackedPoints>, PackedPoints, 3, uint32_t>;
 
-// The points and their tree (the tree refers to the points, so they live and move together).
+// The points and their tree. The tree refers to the points: never copied or moved (held through
+// unique_ptr).
 struct PointKdIndex {
   PackedPoints cloud;
   PointKdTree tree;
