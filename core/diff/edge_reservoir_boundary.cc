@@ -21,6 +21,44 @@ bool inSupport(const Light& l, Vec3 y, Vec3 ny, Vec3 pB, Vec3 nA, Vec3 nB, bool 
   return !isBlack(areaEmission(l, ny, -toY));
 }
 
+struct LightBox {
+  uint32_t mesh = 0;
+  Vec3 corner[8];
+};
+
+LightBox lightBox(const Light& l, const TriangleMesh& mesh) {
+  LightBox b;
+  b.mesh = l.mesh;
+  Vec3 lo(INFINITY), hi(-INFINITY);
+  for (const Vec3& p : mesh.positions) {
+    lo = vmin(lo, p);
+    hi = vmax(hi, p);
+  }
+  for (int i = 0; i < 8; ++i) b.corner[i] = Vec3((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
+  return b;
+}
+
+// Whether the edge through v with face normals nA, nB can be a silhouette from some point y of the
+// box (inSupport's test). n·(y - v) is linear in y (and the same for every point of the edge, which
+// lies in both faces' planes), so its range over the box is its range over the corners. The edge is
+// never a silhouette when both faces face every y, or neither does; the margin keeps the test
+// conservative under rounding.
+bool maySilhouette(Vec3 nA, Vec3 nB, Vec3 v, const LightBox& box) {
+  float aMin = INFINITY, aMax = -INFINITY, bMin = INFINITY, bMax = -INFINITY, scale = 0.f;
+  for (const Vec3& c : box.corner) {
+    const Vec3 d = c - v;
+    const float a = dot(nA, d), b = dot(nB, d);
+    aMin = std::min(aMin, a);
+    aMax = std::max(aMax, a);
+    bMin = std::min(bMin, b);
+    bMax = std::max(bMax, b);
+    scale = std::max(scale, maxComponent(vmax(d, -d)));
+  }
+  const float margin = 1e-5f * scale;
+  const bool allFacing = aMin > margin && bMin > margin, noneFacing = aMax < -margin && bMax < -margin;
+  return !(allFacing || noneFacing);
+}
+
 struct Candidate {
   uint32_t light = 0, tri = 0;
   float b0 = 0.f, b1 = 0.f;
@@ -43,6 +81,11 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
   for (size_t i = 0; i < power.size(); ++i) power[i] = emittedPower(scene.lights[i]);
   if (!power.empty() && *std::max_element(power.begin(), power.end()) > 0.f) pickLight_ = Distribution1D(power);
 
+  // The emitting lights' bounding boxes, for the silhouette culling below.
+  std::vector<LightBox> boxes;
+  for (const Light& l : scene.lights)
+    if (l.kind == LightKind::Area && emittedPower(l) > 0.f && l.mesh < scene.meshes.size()) boxes.push_back(lightBox(l, scene.meshes[l.mesh]));
+
   std::vector<float> base;
   firstEdge_.assign(topology.size() + 1, 0);
   for (uint32_t m = 0; m < topology.size() && m < scene.meshes.size(); ++m) {
@@ -52,7 +95,15 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
     for (uint32_t e = 0; e < list.size(); ++e) {
       const float len = length(mesh.positions[list[e].v1] - mesh.positions[list[e].v0]);
       edges_.push_back({m, e});
-      base.push_back(std::isfinite(len) ? len * (params.moves(m) ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
+      // An edge no light point sees as a silhouette holds no shadow border: its target is zero
+      // for every light sample, so leaving it out of p_k changes no expectation.
+      const MeshEdge& me = list[e];
+      bool border = false;
+      for (size_t b = 0; b < boxes.size() && !border; ++b)
+        border = boxes[b].mesh != m && (me.boundary() || maySilhouette(scene.faceNormal(m, me.face0), scene.faceNormal(m, me.face1),
+                                                                        mesh.positions[me.v0], boxes[b]));
+      if (border) ++candidateEdges_;
+      base.push_back(border && std::isfinite(len) ? len * (params.moves(m) ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
     }
   }
   for (size_t m = std::min(topology.size(), scene.meshes.size()); m < firstEdge_.size(); ++m) firstEdge_[m] = uint32_t(edges_.size());
@@ -100,7 +151,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
                                              std::vector<EdgeReservoir>& created, const std::atomic<bool>* cancel) const {
   BoundaryPassStats st;
   if (samples <= 0 || pickEdge_.size() == 0 || pickLight_.size() == 0) return st;
-  st.candidateEdges = edges_.size();
+  st.candidateEdges = candidateEdges_;
   const Camera& cam = scene_.cameras[size_t(view)];
   const int W = scene_.width, H = scene_.height;
   // The target's floor c: a tenth of what a border of typical film speed (5 % of the film's size
@@ -176,6 +227,16 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
         const float r2 = lengthSquared(toY);
         if (r2 > 0.f)
           h = a * bp.speed * std::abs(dot(bp.hit.ng, toY)) / std::sqrt(r2) * (d2 / r2);
+        // A light point hidden from the edge casts no border there. Only h sees it, so the
+        // support stays g's; the target then prefers light points the edge sees (an area light
+        // mostly behind a board would otherwise take its share of the picks for nothing).
+        if (h > 0.f) {
+          Vec3 dir;
+          float tmax;
+          ++counters.rays.shadow;
+          const Vec3 from = r.pB + normalize(c.y - r.pB) * rayOffset(r.pB);
+          if (scene_.occludedSegment(from, Scene::shadowOrigin(c.y, c.n, r.pB - c.y), dir, tmax)) h = 0.f;
+        }
       }
       const float p = g * (floorC + (std::isfinite(h) ? h : 0.f));
       return std::isfinite(p) ? p : 0.f;

@@ -6,10 +6,11 @@
 // in area) with the target
 //     p̂(y) = g(y) (c + h(y)),   g(y) = [edge k is a silhouette from y] Le(y) cos_y / |y - p^B|^2,
 // where h(y) = |dL/dI| at the film point of the border y casts through p^B times that border's
-// film speed and the receiver's cosine (shadow_border.h; one ray), and c > 0 a floor. So the
-// target follows the integrand of Eq. 22 while its support is g's alone, which depends only on
-// p^B and the edge's face normals: the support test of a reused sample needs just those, as they
-// were where the sample was created (§3.2), and stays unbiased when geometry moves.
+// film speed and the receiver's cosine (shadow_border.h; one ray), zero when y is hidden from p^B
+// (one more ray), and c > 0 a floor. So the target follows the integrand of Eq. 22 while its
+// support is g's alone, which depends only on p^B and the edge's face normals: the support test of
+// a reused sample needs just those, as they were where the sample was created (§3.2), and stays
+// unbiased when geometry moves.
 //
 // With reuse, the previous step's edge reservoirs nearest to p^B (kd-tree over their edge points
 // re-placed on their edges in the current geometry) are merged with the 1/Z weights of Alg. 3, Z
@@ -19,7 +20,9 @@
 //
 // Edge importance (Eq. 27): p_k ∝ (mean of wSum / M over the previous step's reservoirs on edge k
 // + eps) * base_k, base_k the edge's length (times kUnlikelyShadowEdgeWeight when its mesh does
-// not move); without it, p_k ∝ base_k. eps is kEdgeImportanceFloor times the mean over all
+// not move), and 0 for an edge that no point of an emitting area light sees as a silhouette (tested
+// against each light's bounding box: such an edge's target is zero for every y); without it,
+// p_k ∝ base_k. eps is kEdgeImportanceFloor times the mean over all
 // reservoirs, so edges no reservoir landed on keep a share.
 #pragma once
 
@@ -63,6 +66,8 @@ class EdgeReservoirBoundary {
   size_t preserve(const std::vector<int>& views, std::vector<EdgeReservoir>& next, RayStats& rays) const;
 
   size_t edgeCount() const { return edges_.size(); }
+  // Edges that can be a silhouette from some point of an emitting area light: the others get p_k = 0.
+  size_t candidateEdgeCount() const { return candidateEdges_; }
 
  private:
   struct EdgeRef {
@@ -78,6 +83,7 @@ class EdgeReservoirBoundary {
   Distribution1D pickEdge_;
   Distribution1D pickLight_;
   float radius_ = 0.f;
+  size_t candidateEdges_ = 0;
 };
 
 }  // namespace invr

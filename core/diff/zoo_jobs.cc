@@ -64,7 +64,7 @@ v1::JobSpec zooJob(const std::string& name) {
     o->set_steps(200);
   } else if (name == "tree") {
     // Shape (Wang et al. 2023, Fig. 10): the tree's rotation, from 15 degrees off about the
-    // vertical, read mostly from its shadow.
+    // vertical, read from its shadow alone (the view does not see the tree).
     auto* p = o->add_parameters();
     p->set_name("groups/tree/rotation");
     for (double v : {0.0, 15.0, 0.0}) p->add_initial_values(v);

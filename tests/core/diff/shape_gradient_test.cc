@@ -302,6 +302,25 @@ TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
   expectMatches(run(c, 0, fd, forwardOnly, 96, "forward-only"), "forward-only");
 }
 
+// The tree's lighting (Wang et al. 2023, Fig. 9): besides the small lamp, a larger lamp with twice
+// its power hidden behind a board from everything below it. Most of its light points cast no border,
+// which the edge-first target sees through its visibility ray (h = 0, the support unchanged): the
+// estimate must stay unbiased with occluded candidates in every reservoir.
+TEST(ShapeGradient, AreaLightHiddenBehindABoard) {
+  std::string json = cardScene(true, false);
+  const std::string lamp = kLampShape;
+  json.replace(json.find(lamp), lamp.size(),
+               lamp + R"(, {"name": "hidden_lamp", "quad": {}, "material": "white", "transform": {"scale": {"x": 0.4, "y": 0.4, "z": 1}, "rotate_xyz_degrees": {"x": 180}, "translate": {"x": -1.5, "y": 1.0, "z": 4.5}}},
+                  {"name": "board", "quad": {}, "material": "grey", "transform": {"scale": {"x": 0.7, "y": 0.7, "z": 1}, "translate": {"x": -1.5, "y": 1.0, "z": 4.35}}})");
+  const std::string light = kAreaLight;
+  json.replace(json.find(light), light.size(), light + R"(, {"name": "hidden", "area": {"shape": "hidden_lamp", "radiance": {"r": 37, "g": 37, "b": 37}}})");
+  ShapeCase c(json, "shapes/card/translation", {0.08f, -0.05f, 0.1f});
+  const MeanSE fd = validatedFd(c, 0, 0.01f, "card out of view, lamp and a hidden lamp, x");
+  expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Ris), 96, "ris, edge first, hidden lamp"), "ris, edge first, hidden lamp");
+  expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Restir), 96, "restir, edge reservoirs, hidden lamp", {0.02f, 0.f, 0.f}),
+                "restir, edge reservoirs, hidden lamp");
+}
+
 // Merged neighbours must be counted in Z only where their own target (their edge's face normals as
 // they were created) could have produced the chosen light point. On a card every neighbour lies on
 // the same edge and the test is nearly always true; on a small box out of view under the area
