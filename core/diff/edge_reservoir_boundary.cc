@@ -38,23 +38,24 @@ LightBox lightBox(const Light& l, const TriangleMesh& mesh) {
   return b;
 }
 
-// Whether the edge through v with face normals nA, nB can be a silhouette from some point y of the
-// box (inSupport's test). n·(y - v) is linear in y (and the same for every point of the edge, which
-// lies in both faces' planes), so its range over the box is its range over the corners. The edge is
-// never a silhouette when both faces face every y, or neither does; the margin keeps the test
-// conservative under rounding.
-bool maySilhouette(Vec3 nA, Vec3 nB, Vec3 v, const LightBox& box) {
+// Whether the edge (v0, v1) with face normals nA, nB can be a silhouette from some point y of the
+// box (inSupport's test, with p^B on the edge). n·(y - p) is linear in y and in p, so its range over
+// the box and the edge is its range over the corners and the two ends. The edge is never a
+// silhouette when both faces face every y, or neither does; the margin (welded copies of the ends
+// differ by the weld tolerance, and rounding) keeps the test conservative.
+bool maySilhouette(Vec3 nA, Vec3 nB, Vec3 v0, Vec3 v1, const LightBox& box) {
   float aMin = INFINITY, aMax = -INFINITY, bMin = INFINITY, bMax = -INFINITY, scale = 0.f;
-  for (const Vec3& c : box.corner) {
-    const Vec3 d = c - v;
-    const float a = dot(nA, d), b = dot(nB, d);
-    aMin = std::min(aMin, a);
-    aMax = std::max(aMax, a);
-    bMin = std::min(bMin, b);
-    bMax = std::max(bMax, b);
-    scale = std::max(scale, maxComponent(vmax(d, -d)));
-  }
-  const float margin = 1e-5f * scale;
+  for (const Vec3& v : {v0, v1})
+    for (const Vec3& c : box.corner) {
+      const Vec3 d = c - v;
+      const float a = dot(nA, d), b = dot(nB, d);
+      aMin = std::min(aMin, a);
+      aMax = std::max(aMax, a);
+      bMin = std::min(bMin, b);
+      bMax = std::max(bMax, b);
+      scale = std::max({scale, maxComponent(vmax(d, -d)), maxComponent(vmax(v, -v))});
+    }
+  const float margin = 1e-4f * scale;
   const bool allFacing = aMin > margin && bMin > margin, noneFacing = aMax < -margin && bMax < -margin;
   return !(allFacing || noneFacing);
 }
@@ -101,9 +102,10 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
       bool border = false;
       for (size_t b = 0; b < boxes.size() && !border; ++b)
         border = boxes[b].mesh != m && (me.boundary() || maySilhouette(scene.faceNormal(m, me.face0), scene.faceNormal(m, me.face1),
-                                                                        mesh.positions[me.v0], boxes[b]));
+                                                                        mesh.positions[me.v0], mesh.positions[me.v1], boxes[b]));
+      border = border && std::isfinite(len) && len > 0.f;
       if (border) ++candidateEdges_;
-      base.push_back(border && std::isfinite(len) ? len * (params.moves(m) ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
+      base.push_back(border ? len * (params.moves(m) ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
     }
   }
   for (size_t m = std::min(topology.size(), scene.meshes.size()); m < firstEdge_.size(); ++m) firstEdge_[m] = uint32_t(edges_.size());

@@ -6,7 +6,7 @@
 // in area) with the target
 //     p̂(y) = g(y) (c + h(y)),   g(y) = [edge k is a silhouette from y] Le(y) cos_y / |y - p^B|^2,
 // where h(y) = |dL/dI| at the film point of the border y casts through p^B times that border's
-// film speed and the receiver's cosine (shadow_border.h; one ray), zero when y is hidden from p^B
+// film speed and the receiver's cosine (shadow_border.h; two rays), zero when y is hidden from p^B
 // (one more ray), and c > 0 a floor. So the target follows the integrand of Eq. 22 while its
 // support is g's alone, which depends only on p^B and the edge's face normals: the support test of
 // a reused sample needs just those, as they were where the sample was created (§3.2), and stays
@@ -66,8 +66,6 @@ class EdgeReservoirBoundary {
   size_t preserve(const std::vector<int>& views, std::vector<EdgeReservoir>& next, RayStats& rays) const;
 
   size_t edgeCount() const { return edges_.size(); }
-  // Edges that can be a silhouette from some point of an emitting area light: the others get p_k = 0.
-  size_t candidateEdgeCount() const { return candidateEdges_; }
 
  private:
   struct EdgeRef {
@@ -83,7 +81,7 @@ class EdgeReservoirBoundary {
   Distribution1D pickEdge_;
   Distribution1D pickLight_;
   float radius_ = 0.f;
-  size_t candidateEdges_ = 0;
+  size_t candidateEdges_ = 0;  // edges with p_k > 0 before edge importance (reported per pass)
 };
 
 }  // namespace invr

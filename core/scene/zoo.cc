@@ -281,8 +281,8 @@ v1::Scene tree() {
   m.quad("board", "board", {1.1, 1.1, 1}, kFaceUp, {-1.1, 2.3, -0.9});
   // Aimed down at the ground behind the tree from beyond it, where the small light throws the
   // crowns' shadows (the middle one's falls around (-0.8, 0, -0.55)); no part of the tree is in
-  // view, so its rotation is read from the shadow alone (Wang et al. 2023, Fig. 10), through the
-  // shadow-border (secondary) term only.
+  // view (the trunk's foot is just off the left edge), so its rotation is read from the shadow
+  // alone (Wang et al. 2023, Fig. 10), through the shadow-border (secondary) term only.
   m.view("shadow", {-1.5, 2.2, -2.1}, {-1.3, 0.0, -0.62}, 30);
   m.film(256, 192);
   return m.s;
@@ -410,7 +410,7 @@ const std::vector<ZooDef>& zoo() {
       {{"ajar", "painting in a room lit through a nearly closed door plus a dim fill"}, ajar},
       {{"mirror", "three diffuse objects in front of a glossy mirror"}, mirror},
       {{"backlit", "textured sphere under an environment lit from behind, 16 views"}, backlit},
-      {{"tree", "tree-like object and its shadow, a small light and an occluded large light; its rotation (shape parameters)"}, tree},
+      {{"tree", "tree-like object seen only through its shadow, a small light and an occluded large light; its rotation (shape parameters)"}, tree},
       {{"knot", "torus knot under a bright spot and dim fills; its translation (shape parameters)"}, knot},
       {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},
       {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},

@@ -303,9 +303,10 @@ TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
 }
 
 // The tree's lighting (Wang et al. 2023, Fig. 9): besides the small lamp, a larger lamp with twice
-// its power hidden behind a board from everything below it. Most of its light points cast no border,
-// which the edge-first target sees through its visibility ray (h = 0, the support unchanged): the
-// estimate must stay unbiased with occluded candidates in every reservoir.
+// its power hidden behind a board from everything below it. None of its light points casts a
+// border, which the edge-first target sees through its visibility ray (h = 0, the support
+// unchanged): the estimate must stay unbiased with hidden candidates in the reservoirs, merged
+// neighbours included. (Unbiasedness only: any h >= 0 gives the same mean.)
 TEST(ShapeGradient, AreaLightHiddenBehindABoard) {
   std::string json = cardScene(true, false);
   const std::string lamp = kLampShape;
@@ -319,6 +320,9 @@ TEST(ShapeGradient, AreaLightHiddenBehindABoard) {
   expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Ris), 96, "ris, edge first, hidden lamp"), "ris, edge first, hidden lamp");
   expectMatches(run(c, 0, fd, shapeOptions(GradientMethod::Restir), 96, "restir, edge reservoirs, hidden lamp", {0.02f, 0.f, 0.f}),
                 "restir, edge reservoirs, hidden lamp");
+  GradientOptions merged = shapeOptions(GradientMethod::Restir);
+  merged.boundary.edgeNeighbours = 3;
+  expectMatches(run(c, 0, fd, merged, 96, "restir, 3 edge neighbours, hidden lamp", {0.02f, 0.f, 0.f}), "restir, 3 edge neighbours, hidden lamp");
 }
 
 // Merged neighbours must be counted in Z only where their own target (their edge's face normals as
