@@ -221,9 +221,8 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
       if (!(d2 > 0.f)) return 0.f;
       const float g = luminance(areaEmission(l, c.n, toB)) * std::abs(dot(c.n, toB)) / (d2 * std::sqrt(d2));
       ShadowBorderPoint bp;
-      ++counters.rays.shadow;
       float h = 0.f;
-      if (shadowBorderPoint(scene_, params_, cam, ShadowSource::at(c.y), se, t, bp)) {
+      if (shadowBorderPoint(scene_, params_, cam, ShadowSource::at(c.y), se, t, bp, counters.rays)) {
         const float a = smoothAdj[size_t(std::clamp(int(bp.x.y), 0, H - 1)) * size_t(W) + size_t(std::clamp(int(bp.x.x), 0, W - 1))];
         const Vec3 toY = c.y - bp.hit.p;
         const float r2 = lengthSquared(toY);
@@ -305,8 +304,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
 
     // The sample: F(p^B, y) W / p(p^B), F measured on the film (Eq. 25).
     ShadowBorderPoint bp;
-    ++counters.rays.shadow;
-    const bool onFilm = shadowBorderPoint(scene_, params_, cam, ShadowSource::at(chosen.y), se, t, bp);
+    const bool onFilm = shadowBorderPoint(scene_, params_, cam, ShadowSource::at(chosen.y), se, t, bp, counters.rays);
     const Vec3 dir = normalize(r.pB - chosen.y);
     if (onFilm) {
       r.hasP1 = true;

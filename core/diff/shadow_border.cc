@@ -51,7 +51,7 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
 }
 
 bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
-                       ShadowBorderPoint& bp) {
+                       ShadowBorderPoint& bp, RayStats& rays) {
   const int W = scene.width, H = scene.height;
   bp.e = se.a + (se.b - se.a) * t;
   bp.toE = -source.from(bp.e);
@@ -60,6 +60,7 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   const Vec3 dir = bp.toE / distE;
   if (source.directional) bp.toE = dir;
   // Started just past the edge so the grazing faces of the edge itself are not hit.
+  ++rays.shadow;
   if (!scene.intersect(bp.e + dir * offsetAt(bp.e), dir, bp.hit)) return false;
   if (!params.moves(se.mesh) && !params.moves(bp.hit.mesh)) return false;  // nothing here moves
   const Vec3 y = bp.hit.p, nr = bp.hit.ng;
@@ -73,6 +74,7 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   // silhouette (the source near the eye's line of sight) they counted the primary term's jump again.
   Vec3 toCam;
   float camDist;
+  ++rays.shadow;
   if (scene.occludedSegment(offsetOrigin(y, nr, cam.eye - y), cam.eye, toCam, camDist)) return false;
   // The source lights y only from the side the camera sees it from; on the other side both sides
   // of the border are dark.
@@ -128,7 +130,7 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
     const ShadowEdge& se = edges[k];
     const BorderSource& src = sources[se.source];
     ShadowBorderPoint bp;
-    if (!shadowBorderPoint(scene, params, cam, src.at, se, t, bp)) return;
+    if (!shadowBorderPoint(scene, params, cam, src.at, se, t, bp, counters.rays)) return;
     const Rgb minus = radiance(se.source, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, counters.rays);
     const Rgb plus = radiance(se.source, bp.x.x + bp.eps * bp.n.x, bp.x.y + bp.eps * bp.n.y, counters.rays);
     const Rgb diff = minus - plus;

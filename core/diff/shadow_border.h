@@ -65,9 +65,10 @@ struct ShadowBorderPoint {
 };
 
 // The border point of edge `se` at t for `source`; false when there is none on the film or
-// nothing there moves.
+// nothing there moves. Counts the rays it traces (up to two: edge to receiver, receiver to eye)
+// in rays.shadow.
 bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
-                       ShadowBorderPoint& out);
+                       ShadowBorderPoint& out, RayStats& rays);
 
 // Adds w * (n . J dy/dtheta) for the occluder's and the receiver's shape parameters, where w is
 // the sample's weight: adjoint . ΔL * speed / pdf.
