@@ -194,14 +194,13 @@ BenchReport benchGradients(const GradientsArgs& a) {
     return r * std::hypot(relmseSe[size_t(i)] / relmse[size_t(i)], relmseSe[size_t(j)] / relmse[size_t(j)]);
   };
   {
+    // The first 16 values: enough to see a reference that is mostly noise (small, or signs that
+    // change between runs), without printing a texture's worth.
     BenchReport::Json values = BenchReport::Json::array();
-    std::string shown;
-    for (size_t k = 0; k < ref.size() && k < 16; ++k) {
-      values.push_back(ref[k]);
-      shown += (k ? " " : "") + BenchReport::fmt(ref[k]);
-    }
-    if (ref.size() > 16) shown += " ...";
-    rep.value("reference_gradient", std::move(values), shown + " (first 16 values)");
+    for (size_t k = 0; k < ref.size() && k < 16; ++k) values.push_back(ref[k]);
+    const std::string shown = BenchReport::line(values);
+    rep.value("reference_gradient", std::move(values),
+              shown + (ref.size() > 16 ? " (first 16 of " + std::to_string(ref.size()) + ")" : ""));
   }
   rep.number("reference_noise_floor", floor, "(relMSE the reference itself contributes; keep it well below restir's)");
   rep.number("ratio_ris_over_restir", relmse[1] / relmse[2],
@@ -499,7 +498,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   for (const char* baseline : {"pt", "ris", "forward_only"})
     if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
       rep.number(std::string("ratio_") + baseline + "_over_restir", errors[size_t(indexOf(baseline))] / errors[size_t(indexOf("restir"))],
-                 std::string(baseline) == "pt" ? "(target >= 3)" : "");
+                 std::string(baseline) == "pt" ? "(target >= 3)" : a.scene == "tree" ? "(target >= 3 on the tree)" : "");
   if (indexOf("uniform") >= 0 && indexOf("adaptive") >= 0)
     rep.number("ratio_uniform_over_adaptive", errors[size_t(indexOf("uniform"))] / errors[size_t(indexOf("adaptive"))]);
   rep.text("csv", a.csv);
