@@ -440,11 +440,21 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   };
   if (a.seeds < 1) throw InputError("--seeds must be at least 1");
   // Each method runs once per seed (the job's seed, then the next ones); the figures are medians.
-  std::vector<double> errors;
+  // The final iterate of a run that has reached its noise floor is one draw from that floor, so
+  // each run also reports the floor's level as `invr eval` does: the RMS parameter error over the
+  // last quarter of the budget.
+  auto tailError = [&](const std::vector<EqualTimePoint>& history) {
+    double sum = 0;
+    size_t n = 0;
+    for (const EqualTimePoint& pt : history)
+      if (pt.step > 0 && pt.seconds >= 0.75 * a.seconds) sum += pt.parameterError * pt.parameterError, ++n;
+    return n ? std::sqrt(sum / double(n)) : history.back().parameterError;
+  };
+  std::vector<double> errors, tails;
   BenchReport::Json methods = BenchReport::Json::object();
   const uint64_t firstSeed = s.problem.seed;
   for (const Variant& v : variants) {
-    std::vector<double> finalErrors, finalDegrees;
+    std::vector<double> finalErrors, finalDegrees, tailErrors;
     for (int k = 0; k < a.seeds; ++k) {
       s.problem.seed = firstSeed + uint64_t(k);
       EqualTimeOptions budget;
@@ -453,6 +463,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
                                       [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, label, pt); });
       finalErrors.push_back(run.history.back().parameterError);
+      tailErrors.push_back(tailError(run.history));
       if (!rotation.empty()) finalDegrees.push_back(degreesOff(run.theta));
       if (k == 0) {
         rep.number("steps_" + v.name, run.history.back().step);
@@ -465,6 +476,9 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     BenchReport::Json m = BenchReport::Json::object();
     m["median_final_param_error"] = errors.back();
     m["final_param_error"] = finalErrors;
+    tails.push_back(median(tailErrors));
+    m["median_param_error_tail"] = tails.back();
+    m["param_error_tail"] = tailErrors;
     if (!rotation.empty()) {
       m["median_final_error_degrees"] = median(finalDegrees);
       m["final_error_degrees"] = finalDegrees;
@@ -482,7 +496,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     }
     rep.value("median_final_error_degrees", std::move(degrees), shown + " (median over seeds of the final rotation RMSE)");
   }
-  rep.value("methods", std::move(methods), "per method: final parameter errors per seed and their median");
+  rep.value("methods", std::move(methods), "per method: final and last-quarter parameter errors per seed and their medians");
   BenchReport::Json paramError = BenchReport::Json::object();
   std::string shown;
   for (size_t i = 0; i < variants.size(); ++i) {
@@ -490,6 +504,14 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(errors[i]);
   }
   rep.value("param_error", std::move(paramError), shown + " (RMSE of the parameters)");
+  BenchReport::Json tailJson = BenchReport::Json::object();
+  shown.clear();
+  for (size_t i = 0; i < variants.size(); ++i) {
+    tailJson[variants[i].name] = tails[i];
+    shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(tails[i]);
+  }
+  rep.value("param_error_tail", std::move(tailJson),
+            shown + " (median over seeds of the RMS parameter error over the last quarter of the budget)");
   auto indexOf = [&](const std::string& n) {
     for (size_t i = 0; i < variants.size(); ++i)
       if (variants[i].name == n) return int(i);
@@ -499,8 +521,13 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
       rep.number(std::string("ratio_") + baseline + "_over_restir", errors[size_t(indexOf(baseline))] / errors[size_t(indexOf("restir"))],
                  std::string(baseline) == "pt" ? "(target >= 3)" : a.scene == "tree" ? "(target >= 3 on the tree)" : "");
-  if (indexOf("uniform") >= 0 && indexOf("adaptive") >= 0)
+  for (const char* baseline : {"pt", "ris", "forward_only"})
+    if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
+      rep.number(std::string("tail_ratio_") + baseline + "_over_restir", tails[size_t(indexOf(baseline))] / tails[size_t(indexOf("restir"))]);
+  if (indexOf("uniform") >= 0 && indexOf("adaptive") >= 0) {
     rep.number("ratio_uniform_over_adaptive", errors[size_t(indexOf("uniform"))] / errors[size_t(indexOf("adaptive"))]);
+    rep.number("tail_ratio_uniform_over_adaptive", tails[size_t(indexOf("uniform"))] / tails[size_t(indexOf("adaptive"))]);
+  }
   rep.text("csv", a.csv);
   rep.print(a.json);
 }
