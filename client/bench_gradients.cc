@@ -446,8 +446,10 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   auto tailError = [&](const std::vector<EqualTimePoint>& history) {
     double sum = 0;
     size_t n = 0;
-    for (const EqualTimePoint& pt : history)
+    for (const EqualTimePoint& pt : history) {
+      if (!(pt.parameterError >= 0)) return pt.parameterError;  // -1: no parameter has a ground truth
       if (pt.step > 0 && pt.seconds >= 0.75 * a.seconds) sum += pt.parameterError * pt.parameterError, ++n;
+    }
     return n ? std::sqrt(sum / double(n)) : history.back().parameterError;
   };
   std::vector<double> errors, tails;

@@ -247,8 +247,10 @@ double finalParamError(const MethodResult& m) { return m.run.history.back().para
 double tailParamError(const MethodResult& m, double budget) {
   double sum = 0;
   int n = 0;
-  for (const auto& pt : m.run.history)
+  for (const auto& pt : m.run.history) {
+    if (!(pt.parameterError >= 0)) return pt.parameterError;  // -1: no parameter has a ground truth
     if (pt.step > 0 && pt.seconds >= 0.75 * budget) sum += pt.parameterError * pt.parameterError, ++n;
+  }
   return n ? std::sqrt(sum / n) : finalParamError(m);
 }
 double finalImageError(const MethodResult& m) { return m.run.history.back().imageError; }
