@@ -440,18 +440,6 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   };
   if (a.seeds < 1) throw InputError("--seeds must be at least 1");
   // Each method runs once per seed (the job's seed, then the next ones); the figures are medians.
-  // The final iterate of a run that has reached its noise floor is one draw from that floor, so
-  // each run also reports the floor's level as `invr eval` does: the RMS parameter error over the
-  // last quarter of the budget.
-  auto tailError = [&](const std::vector<EqualTimePoint>& history) {
-    double sum = 0;
-    size_t n = 0;
-    for (const EqualTimePoint& pt : history) {
-      if (!(pt.parameterError >= 0)) return pt.parameterError;  // -1: no parameter has a ground truth
-      if (pt.step > 0 && pt.seconds >= 0.75 * a.seconds) sum += pt.parameterError * pt.parameterError, ++n;
-    }
-    return n ? std::sqrt(sum / double(n)) : history.back().parameterError;
-  };
   std::vector<double> errors, tails;
   BenchReport::Json methods = BenchReport::Json::object();
   const uint64_t firstSeed = s.problem.seed;
@@ -465,7 +453,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
                                       [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, label, pt); });
       finalErrors.push_back(run.history.back().parameterError);
-      tailErrors.push_back(tailError(run.history));
+      tailErrors.push_back(tailParameterError(run.history, a.seconds));  // where it settled
       if (!rotation.empty()) finalDegrees.push_back(degreesOff(run.theta));
       if (k == 0) {
         rep.number("steps_" + v.name, run.history.back().step);

@@ -244,15 +244,7 @@ double finalParamError(const MethodResult& m) { return m.run.history.back().para
 // RMS of the parameter error over the last quarter of the budget: a run that oscillates around
 // the optimum (Adam on a noisy scalar) is judged by its noise level, not by where its last step
 // happened to land.
-double tailParamError(const MethodResult& m, double budget) {
-  double sum = 0;
-  int n = 0;
-  for (const auto& pt : m.run.history) {
-    if (!(pt.parameterError >= 0)) return pt.parameterError;  // -1: no parameter has a ground truth
-    if (pt.step > 0 && pt.seconds >= 0.75 * budget) sum += pt.parameterError * pt.parameterError, ++n;
-  }
-  return n ? std::sqrt(sum / n) : finalParamError(m);
-}
+double tailParamError(const MethodResult& m, double budget) { return tailParameterError(m.run.history, budget); }
 double finalImageError(const MethodResult& m) { return m.run.history.back().imageError; }
 
 // The grid: initial | truth | each method; rows: view-0 render, its difference from the truth,

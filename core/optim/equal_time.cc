@@ -7,6 +7,16 @@
 
 namespace invr {
 
+double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
+  double sum = 0;
+  size_t n = 0;
+  for (const EqualTimePoint& pt : history) {
+    if (!(pt.parameterError >= 0)) return pt.parameterError;
+    if (pt.step > 0 && pt.seconds >= 0.75 * budgetSeconds) sum += pt.parameterError * pt.parameterError, ++n;
+  }
+  return n ? std::sqrt(sum / double(n)) : history.back().parameterError;
+}
+
 void writeEqualTimeCsvRow(std::ostream& out, const std::string& method, const EqualTimePoint& pt) {
   auto cell = [&](double v) {
     if (std::isfinite(v)) out << v;

@@ -42,6 +42,11 @@ struct EqualTimeRun {
 inline constexpr const char* kEqualTimeCsvHeader = "method,step,seconds,loss,param_error,image_error";
 void writeEqualTimeCsvRow(std::ostream& out, const std::string& method, const EqualTimePoint& point);
 
+// Where a run settled: the RMS parameter error over the last quarter of `budgetSeconds`. A run at
+// its noise floor keeps moving, so its final value is one draw from that floor. Falls back to the
+// final value when no step fell in that quarter, and keeps the -1 of jobs without ground truth.
+double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds);
+
 // Optimises problem.initial with `options` (the problem's own gradient settings are ignored)
 // until the budget is spent. `meter` may be null (no image error). `onPoint` sees every point.
 EqualTimeRun runEqualTime(Problem& problem, const std::vector<Image>& targets, const GradientOptions& options,

@@ -65,6 +65,24 @@ TEST(EqualTime, ADivergingMethodStopsWithTheReasonAndItsLastGoodParameters) {
   EXPECT_EQ(run.history.back().step, 0);
 }
 
+// The last quarter of a 4 s budget is [3, 4] s: steps at 3 and 4 s (errors 3 and 4) give
+// sqrt((9 + 16) / 2); earlier steps and the step-0 point do not count.
+TEST(EqualTime, TailErrorIsTheRmsOverTheLastQuarterOfTheBudget) {
+  auto point = [](int step, double seconds, double error) {
+    EqualTimePoint p;
+    p.step = step;
+    p.seconds = seconds;
+    p.parameterError = error;
+    return p;
+  };
+  const std::vector<EqualTimePoint> run{point(0, 0, 10), point(1, 1, 7), point(2, 2.9, 5), point(3, 3, 3), point(4, 4, 4)};
+  EXPECT_DOUBLE_EQ(tailParameterError(run, 4.0), std::sqrt(12.5));
+  // No step in the last quarter (one long step): the final value.
+  EXPECT_DOUBLE_EQ(tailParameterError({point(0, 0, 10), point(1, 2, 6)}, 4.0), 6.0);
+  // Jobs without ground truth report -1, never an error of 1.
+  EXPECT_DOUBLE_EQ(tailParameterError({point(0, 0, -1), point(1, 3.5, -1)}, 4.0), -1.0);
+}
+
 TEST(EqualTime, RejectsANonPositiveBudget) {
   auto job = zooJob("cornell");
   job.mutable_optimization()->set_target_spp(1);
