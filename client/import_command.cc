@@ -6,7 +6,7 @@
 #include <memory>
 
 #include "client/commands.h"
-#include "client/job_argument.h"
+#include "client/common/job_argument.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/io/mitsuba_import.h"

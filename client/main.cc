@@ -6,7 +6,8 @@
 #include <iostream>
 
 #include "client/commands.h"
-#include "client/exit_codes.h"
+#include "client/common/exit_codes.h"
+#include "client/lab/lab_commands.h"
 #include "core/error.h"
 
 int main(int argc, char** argv) {

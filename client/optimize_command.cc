@@ -5,14 +5,14 @@
 #include <iostream>
 #include <memory>
 
-#include "client/bench_report.h"
+#include "client/lab/bench_report.h"
 #include "client/commands.h"
-#include "client/job_argument.h"
-#include "client/progress.h"
-#include "core/diff/zoo_jobs.h"
+#include "client/common/job_argument.h"
+#include "client/common/progress.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
-#include "client/figures.h"
+#include "client/common/figures.h"
 #include "core/optim/local_run.h"
 #include "core/optim/results_io.h"
 #include "core/render/renderer.h"
@@ -66,7 +66,7 @@ void runOptimize(const OptimizeArgs& a) {
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
   }
-  RenderOptions ro = transportRenderOptions(problem, 64, Stream::FinalRender);  // the targets' transport
+  RenderOptions ro = transportRenderOptions(problem, 64, kFinalRenderStream);  // the targets' transport
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {
     writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
     writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);

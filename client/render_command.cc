@@ -5,8 +5,8 @@
 #include <memory>
 
 #include "client/commands.h"
-#include "client/job_argument.h"
-#include "client/progress.h"
+#include "client/common/job_argument.h"
+#include "client/common/progress.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/render/renderer.h"

@@ -3,11 +3,11 @@
 #include <optional>
 #include <thread>
 
-#include "core/diff/memory_model.h"
-#include "core/diff/plan.h"
+#include "core/job/memory_model.h"
+#include "core/job/plan.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
-#include "core/io/limits.h"
+#include "core/limits.h"
 
 namespace invr::server {
 

@@ -12,7 +12,7 @@
 #include <mutex>
 #include <string>
 
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 #include "invr/v1/service.pb.h"
 #include "server/asset_store.h"
 

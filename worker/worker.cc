@@ -15,7 +15,7 @@
 #include <optional>
 #include <thread>
 
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
 #include "invr/v1/service.grpc.pb.h"
@@ -351,7 +351,7 @@ class Worker {
       if (theta.size() != p.params.size()) throw InputError("task: theta has " + std::to_string(theta.size()) + " values, the job " + std::to_string(p.params.size()));
       if (t.kind() == v1::Task::FINAL_RENDER) {
         p.params.write(theta, *p.scene);
-        RenderOptions ro = transportRenderOptions(p, std::max(1, t.final_spp()), Stream::FinalRender);
+        RenderOptions ro = transportRenderOptions(p, std::max(1, t.final_spp()), kFinalRenderStream);
         ro.cancel = &cancel_;
         for (int v : t.views()) toProto(renderView(*p.scene, v, ro).image, res.add_renders());
         for (int v : t.views()) toProto(s.targets.at(size_t(v)), res.add_renders());

@@ -12,7 +12,7 @@
 #include "core/bsdf/mirror.h"
 #include "core/bsdf/rough_conductor.h"
 #include "core/bsdf/rough_plastic.h"
-#include "core/scene/texture.h"
+#include "core/image/texture.h"
 
 namespace invr {
 

@@ -18,6 +18,9 @@
 
 namespace invr {
 
+// Area-light shadow borders (light points first, or edge first: edge_reservoir_boundary.h).
+inline constexpr StreamId kAreaShadowBoundaryStream{14};
+
 class AreaShadowBoundary {
  public:
   AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);

@@ -15,6 +15,8 @@
 
 namespace invr {
 
+inline constexpr StreamId kDeltaShadowBoundaryStream{13};
+
 class DeltaShadowBoundary {
  public:
   // topology[m] for every mesh (occluders may be static: a moving receiver moves their shadow).

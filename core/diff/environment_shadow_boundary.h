@@ -15,6 +15,8 @@
 
 namespace invr {
 
+inline constexpr StreamId kEnvironmentShadowBoundaryStream{15};
+
 class EnvironmentShadowBoundary {
  public:
   EnvironmentShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);

@@ -165,7 +165,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
         map = buildPixelMap(po, runStage1(v, req, st.drops), req.step, &st.drops);
         st.secondsStage1 += secondsSince(t0);
       }
-      batches.push_back(drawPixelBatch(map, n, RngKey{streamSeed(req.seed, Stream::PixelBatch), req.step, uint64_t(v), 0, 0}));
+      batches.push_back(drawPixelBatch(map, n, RngKey{streamSeed(req.seed, kPixelBatchStream), req.step, uint64_t(v), 0, 0}));
       for (size_t j = 0; j < pixels; ++j)
         INVR_INVARIANT((batches.back().draws[j] > 0) == (batches.back().weight[j] > 0.f) && std::isfinite(batches.back().weight[j]),
                        "a pixel batch weight does not match its draws");
@@ -215,7 +215,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
     PassSpec spec;
     spec.kind = PassKind::Primal;
     spec.view = view;
-    spec.stream = streamSeed(req.seed, Stream::Primal);
+    spec.stream = streamSeed(req.seed, kPrimalStream);
     spec.step = req.step;
     spec.spp = opt_.sppPrimal;
     spec.batch = batchOf(k);
@@ -246,7 +246,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       PassSpec spec;
       spec.kind = req.renderOnly ? PassKind::Primal : PassKind::Derivative;
       spec.view = view;
-      spec.stream = streamSeed(req.seed, Stream::Derivative);
+      spec.stream = streamSeed(req.seed, kDerivativeStream);
       spec.step = req.step;
       spec.spp = opt_.sppGradient;
       spec.batch = batchOf(k);
@@ -299,22 +299,22 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
                                     restirDerivative);
       if (bo.primary)
         count(PrimaryBoundary(scene_, params_, topology_)
-                  .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, Stream::PrimaryBoundary), req.step, *scratch_,
+                  .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, kPrimaryBoundaryStream), req.step, *scratch_,
                        out.gradient, req.cancel));
       if (bo.secondary && DeltaShadowBoundary::applies(scene_))
         count(DeltaShadowBoundary(scene_, params_, topology_)
-                  .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, Stream::DeltaShadowBoundary), req.step, *scratch_,
+                  .run(*estimator, view, adjoints[k], samples, streamSeed(req.seed, kDeltaShadowBoundaryStream), req.step, *scratch_,
                        out.gradient, req.cancel));
       if (edgeSampler)
-        count(edgeSampler->run(view, adjoints[k], samples, streamSeed(req.seed, Stream::AreaShadowBoundary), req.step, *scratch_,
+        count(edgeSampler->run(view, adjoints[k], samples, streamSeed(req.seed, kAreaShadowBoundaryStream), req.step, *scratch_,
                                out.gradient, createdEdges, req.cancel));
       else if (bo.secondary && AreaShadowBoundary::applies(scene_))
         count(AreaShadowBoundary(scene_, params_, topology_)
-                  .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, Stream::AreaShadowBoundary), req.step, *scratch_,
+                  .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, kAreaShadowBoundaryStream), req.step, *scratch_,
                        out.gradient, req.cancel));
       if (bo.secondary && EnvironmentShadowBoundary::applies(scene_))
         count(EnvironmentShadowBoundary(scene_, params_, topology_)
-                  .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, Stream::EnvironmentShadowBoundary), req.step,
+                  .run(view, adjoints[k], samples, bo.lightPoints, streamSeed(req.seed, kEnvironmentShadowBoundaryStream), req.step,
                        *scratch_, out.gradient, req.cancel));
     }
     if (edgeSampler && restirDerivative) {
@@ -351,7 +351,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       PassSpec spec;
       spec.kind = PassKind::Variance;
       spec.view = view;
-      spec.stream = streamSeed(req.seed, Stream::Variance);
+      spec.stream = streamSeed(req.seed, kVarianceStream);
       spec.step = req.step;
       spec.spp = opt_.variance.spp;
       spec.batch = batchOf(k);
@@ -483,7 +483,7 @@ Image GradientEngine::sampleVarianceMap(int view, int spp, uint64_t seed, const 
   spec.kind = PassKind::Primal;
   spec.squares = true;
   spec.view = view;
-  spec.stream = streamSeed(seed, Stream::VarianceMap);
+  spec.stream = streamSeed(seed, kVarianceMapStream);
   spec.spp = spp;
   spec.cancel = cancel;
   PassOutput pr = runPass(scene_, *estimator, spec, *scratch_);
@@ -527,7 +527,7 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req, SampleDro
   PassSpec spec;
   spec.kind = PassKind::Primal;
   spec.view = view;
-  spec.stream = streamSeed(req.seed, Stream::Stage1Primal);
+  spec.stream = streamSeed(req.seed, kStage1PrimalStream);
   spec.step = req.step;
   spec.batch = &cellPixels;
   spec.cancel = req.cancel;
@@ -538,7 +538,7 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req, SampleDro
   imageLoss(opt_.loss, primal.image, targets_[size_t(view)], &adjoint, 1, &cellPixels.weight);
   // Squared parameter derivatives of one sample per cell (Eq. 16), with a unit adjoint.
   spec.kind = PassKind::Stage1;
-  spec.stream = streamSeed(req.seed, Stream::Stage1Derivative);
+  spec.stream = streamSeed(req.seed, kStage1DerivativeStream);
   PassOutput deriv = runPass(scene_, *estimator, spec, *scratch_);
   drops += primal.drops;
   drops += deriv.drops;

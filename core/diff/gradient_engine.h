@@ -27,6 +27,12 @@
 
 namespace invr {
 
+// The random streams of the engine's own passes (pixel samplers and boundary terms name theirs).
+inline constexpr StreamId kPrimalStream{1};       // primal pass of a gradient step
+inline constexpr StreamId kDerivativeStream{2};   // derivative pass (independent of the primal one)
+inline constexpr StreamId kVarianceStream{10};    // variance pass of a variance-aware step (Yan et al. 2024)
+inline constexpr StreamId kVarianceMapStream{11}; // the per-pixel variance maps of a variance-aware job's results
+
 struct GradientRequest {
   std::vector<int> views;  // the mini-batch
   uint64_t step = 0;

@@ -25,6 +25,10 @@
 
 namespace invr {
 
+inline constexpr StreamId kStage1PrimalStream{3};      // stage 1: dL/dI on the sparse grid
+inline constexpr StreamId kStage1DerivativeStream{4};  // stage 1: squared parameter derivatives
+inline constexpr StreamId kPixelBatchStream{6};        // which pixels a step traces
+
 enum class PixelSampler { All, Uniform, LossGrad, Adaptive };
 PixelSampler pixelSamplerFromName(const std::string& name);  // throws InputError
 const char* pixelSamplerName(PixelSampler s);

@@ -24,6 +24,8 @@
 
 namespace invr {
 
+inline constexpr StreamId kPrimaryBoundaryStream{12};
+
 class PrimaryBoundary {
  public:
   // topology[m] for every mesh the registry moves (others may be empty).

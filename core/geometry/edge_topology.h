@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/scene/mesh.h"
+#include "core/geometry/mesh.h"
 
 namespace invr {
 

@@ -6,7 +6,7 @@
 
 #include <vector>
 
-#include "core/scene/mesh.h"
+#include "core/geometry/mesh.h"
 
 namespace invr {
 

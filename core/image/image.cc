@@ -13,7 +13,7 @@
 #include <map>
 
 #include "core/error.h"
-#include "core/io/limits.h"
+#include "core/limits.h"
 
 namespace invr {
 

@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/io/limits.h"
+#include "core/limits.h"
 
 namespace invr {
 

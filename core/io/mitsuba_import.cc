@@ -12,7 +12,7 @@
 
 #include "core/error.h"
 #include "core/io/job_io.h"
-#include "core/io/limits.h"
+#include "core/limits.h"
 
 namespace invr {
 

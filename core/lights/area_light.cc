@@ -1,5 +1,4 @@
 #include "core/lights/light.h"
-#include "core/scene/scene.h"
 
 namespace invr {
 
@@ -11,12 +10,11 @@ float areaLightPdf(const Light& light, Vec3 p, Vec3 y, Vec3 n) {
   return d2 / (light.area * cosL);
 }
 
-LightSample areaLightSampleAt(const Light& light, const Scene& scene, Vec3 p, uint32_t tri, float b1, float b2) {
+LightSample areaLightSampleAt(const Light& light, const TriangleMesh& m, Vec3 p, uint32_t tri, float b1, float b2) {
   LightSample s;
-  const TriangleMesh& m = scene.meshes[light.mesh];
   Vec3 a = m.positions[m.indices[3 * tri]], b = m.positions[m.indices[3 * tri + 1]], c = m.positions[m.indices[3 * tri + 2]];
   Vec3 y = a * (1.f - b1 - b2) + b * b1 + c * b2;
-  Vec3 n = scene.faceNormal(light.mesh, tri);
+  Vec3 n = m.faceNormals[tri];
   s.ref.tri = tri;
   s.ref.b1 = b1;
   s.ref.b2 = b2;
@@ -38,12 +36,12 @@ LightSample areaLightSampleAt(const Light& light, const Scene& scene, Vec3 p, ui
   return s;
 }
 
-LightSample sampleAreaLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2) {
+LightSample sampleAreaLight(const Light& light, const TriangleMesh& emitter, Vec3 p, Vec2 u2) {
   float remapped;
   size_t tri = light.triangles.sample(u2.x, &remapped);
   // Reuse the remapped first uniform so one light sample costs two dimensions.
   Vec2 bc = sampleUniformTriangle({remapped, u2.y});
-  LightSample s = areaLightSampleAt(light, scene, p, uint32_t(tri), bc.x, bc.y);
+  LightSample s = areaLightSampleAt(light, emitter, p, uint32_t(tri), bc.x, bc.y);
   // Uniform by area over the whole emitter: the triangle choice is proportional to its area.
   return s;
 }

@@ -1,18 +1,22 @@
 #include "core/lights/light.h"
-#include "core/scene/scene.h"
+
+#include <stdexcept>
 
 namespace invr {
 
-LightSample sampleAreaLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2);
-LightSample areaLightSampleAt(const Light& light, const Scene& scene, Vec3 p, uint32_t tri, float b1, float b2);
+LightSample sampleAreaLight(const Light& light, const TriangleMesh& emitter, Vec3 p, Vec2 u2);
+LightSample areaLightSampleAt(const Light& light, const TriangleMesh& emitter, Vec3 p, uint32_t tri, float b1, float b2);
 LightSample samplePointOrSpot(const Light& light, Vec3 p);
 LightSample sampleEnvironment(const Light& light, Vec2 u2);
 LightSample environmentSampleAt(const Light& light, Vec3 w);
 
-LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex) {
+LightSample sampleLight(const Light& light, const TriangleMesh* emitter, Vec3 p, Vec2 u2, uint32_t lightIndex) {
   LightSample s;
   switch (light.kind) {
-    case LightKind::Area: s = sampleAreaLight(light, scene, p, u2); break;
+    case LightKind::Area:
+      if (!emitter) throw std::logic_error("sampleLight: an area light needs its emitter mesh");
+      s = sampleAreaLight(light, *emitter, p, u2);
+      break;
     case LightKind::Point:
     case LightKind::Spot: s = samplePointOrSpot(light, p); break;
     default: s = sampleEnvironment(light, u2); break;
@@ -21,11 +25,13 @@ LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2,
   return s;
 }
 
-LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p) {
-  const Light& light = scene.lights[ref.light];
+LightSample evalLightSample(const Light& light, const TriangleMesh* emitter, const LightSampleRef& ref, Vec3 p) {
   LightSample s;
   switch (light.kind) {
-    case LightKind::Area: s = areaLightSampleAt(light, scene, p, ref.tri, ref.b1, ref.b2); break;
+    case LightKind::Area:
+      if (!emitter) throw std::logic_error("evalLightSample: an area light needs its emitter mesh");
+      s = areaLightSampleAt(light, *emitter, p, ref.tri, ref.b1, ref.b2);
+      break;
     case LightKind::Point:
     case LightKind::Spot: s = samplePointOrSpot(light, p); break;
     default: s = environmentSampleAt(light, ref.direction()); break;

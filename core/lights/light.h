@@ -8,11 +8,10 @@
 
 #include "core/math/rng.h"
 #include "core/math/sampling.h"
-#include "core/scene/texture.h"
+#include "core/geometry/mesh.h"
+#include "core/image/texture.h"
 
 namespace invr {
-
-class Scene;
 
 enum class LightKind { Area, Point, Spot, Environment, ConstantEnvironment };
 
@@ -74,9 +73,11 @@ struct Light {
 };
 
 // Samples a direction towards `light` (index lightIndex) from point `p` (u2: two uniforms).
-LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex = 0);
-// Re-evaluates a stored light sample from point p in the current scene (pdf fields included).
-LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p);
+// `emitter` is an area light's mesh (with its face normals), null for other lights; the scene's
+// overloads (scene.h) pass it.
+LightSample sampleLight(const Light& light, const TriangleMesh* emitter, Vec3 p, Vec2 u2, uint32_t lightIndex = 0);
+// Re-evaluates a stored light sample of `light` from point p (pdf fields included).
+LightSample evalLightSample(const Light& light, const TriangleMesh* emitter, const LightSampleRef& ref, Vec3 p);
 
 // Area lights: emitted radiance leaving point with geometric normal n towards direction w.
 inline Rgb areaEmission(const Light& l, Vec3 n, Vec3 w) {

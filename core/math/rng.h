@@ -14,30 +14,18 @@ inline constexpr uint64_t mix64(uint64_t z) {
   return z ^ (z >> 31);
 }
 
-// The purposes random numbers serve within one job. Each has streams of its own.
-enum class Stream : uint64_t {
-  Primal = 1,            // primal pass of a gradient step
-  Derivative = 2,        // derivative pass (independent of the primal one: dL/dI * dI/dtheta)
-  Stage1Primal = 3,      // pixel-sampling statistics (Yan et al. 2025, stage 1)
-  Stage1Derivative = 4,
-  Target = 5,            // ground-truth targets and final renders
-  PixelBatch = 6,        // which pixels a step traces
-  ViewBatch = 7,         // which views a step renders
-  FinalRender = 8,       // renders of the result
-  ImageError = 9,        // the image-error meter's renders
-  Variance = 10,         // variance pass of a variance-aware step (Yan et al. 2024)
-  VarianceMap = 11,      // the per-pixel variance maps of a variance-aware job's results
-  PrimaryBoundary = 12,  // shape derivatives: edge samples of the primary boundary term
-  DeltaShadowBoundary = 13,  // point and spot light shadow borders
-  AreaShadowBoundary = 14,   // area light shadow borders
-  EnvironmentShadowBoundary = 15,  // environment light shadow borders
+// One purpose random numbers serve within a job (a pass, a boundary term, the targets, ...).
+// Each id is declared beside the code that draws from it; no two purposes share one.
+struct StreamId {
+  uint64_t value;
+  constexpr bool operator==(const StreamId&) const = default;
 };
 
 // The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as
 // seed * 2 + pass would make seed s's third stream seed s + 1's first, so runs with neighbouring
 // seeds would share numbers and not be independent.
-inline constexpr uint64_t streamSeed(uint64_t seed, Stream stream) {
-  return mix64(mix64(seed ^ 0x2545f4914f6cdd1dull) + uint64_t(stream) * 0x9e3779b97f4a7c15ull);
+inline constexpr uint64_t streamSeed(uint64_t seed, StreamId stream) {
+  return mix64(mix64(seed ^ 0x2545f4914f6cdd1dull) + stream.value * 0x9e3779b97f4a7c15ull);
 }
 
 struct RngKey {

@@ -12,7 +12,7 @@ ImageErrorMeter::ImageErrorMeter(Problem& p, int maxViews, int spp) : problem_(p
   int n = std::min<int>(maxViews, int(p.scene->cameras.size()));
   for (int v = 0; v < n; ++v) views_.push_back(v);
   // Not the targets' own stream: their noise is not what we compare.
-  options_ = transportRenderOptions(p, spp, Stream::ImageError);
+  options_ = transportRenderOptions(p, spp, kImageErrorStream);
   if (!p.groundTruthKnown()) {
     for (int v : views_) reference_.push_back(p.givenTargets.at(size_t(v)));
   } else {

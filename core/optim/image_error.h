@@ -7,9 +7,11 @@
 
 #include <vector>
 
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 
 namespace invr {
+
+inline constexpr StreamId kImageErrorStream{9};  // the image-error meter's renders
 
 class ImageErrorMeter {
  public:

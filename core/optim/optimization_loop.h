@@ -9,7 +9,7 @@
 #include <optional>
 #include <vector>
 
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 #include "core/optim/optimizer.h"
 
 namespace invr {

@@ -31,10 +31,5 @@ void optimizerStep(OptimizerKind kind, const ParameterRegistry& params, const st
     }
 }
 
-OptimizerKind optimizerKindFromName(const std::string& name) {
-  if (name == "adam") return OptimizerKind::Adam;
-  if (name == "sgd") return OptimizerKind::Sgd;
-  throw InputError("unknown optimizer '" + name + "' (use adam or sgd)");
-}
 
 }  // namespace invr

@@ -9,7 +9,7 @@
 
 #include "core/math/rng.h"
 #include "core/render/render_options.h"
-#include "core/restir/reservoir.h"
+#include "core/render/reservoir.h"
 #include "core/scene/scene.h"
 
 namespace invr {

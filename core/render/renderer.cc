@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/math/rng.h"
+#include "core/io/job_io.h"
 #include "core/render/path_tracer.h"
 
 namespace invr {
@@ -97,6 +98,19 @@ Aovs renderAovs(const Scene& scene, int view) {
       }
   });
   return out;
+}
+
+RenderOptions renderOptionsFrom(const invr::v1::RenderSettings& r) {
+  validateRenderSettings(r);
+  RenderOptions o;
+  o.spp = r.spp() > 0 ? r.spp() : 16;
+  o.maxDepth = r.max_depth() > 0 ? r.max_depth() : 1;
+  o.estimator = r.estimator() == invr::v1::ESTIMATOR_RIS ? LightEstimator::Ris : LightEstimator::NeeMis;
+  o.risCandidates = r.ris_candidates() > 0 ? r.ris_candidates() : 8;
+  o.risVisibilityInTarget = r.ris_visibility_in_target();
+  o.russianRouletteDepth = r.russian_roulette_depth() > 0 ? r.russian_roulette_depth() : 3;
+  o.seed = r.seed();
+  return o;
 }
 
 }  // namespace invr

@@ -7,6 +7,7 @@
 #include "core/image/image.h"
 #include "core/render/render_options.h"
 #include "core/scene/scene.h"
+#include "invr/v1/job.pb.h"
 
 namespace invr {
 
@@ -28,5 +29,9 @@ struct Aovs {
   Image albedo, normal, depth;
 };
 Aovs renderAovs(const Scene& scene, int view);
+
+// A job's render settings (validated; defaults applied for zero-valued fields, as proto3 has no
+// presence for scalars).
+RenderOptions renderOptionsFrom(const invr::v1::RenderSettings& settings);
 
 }  // namespace invr

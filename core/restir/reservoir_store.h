@@ -11,7 +11,7 @@
 #include <mutex>
 #include <vector>
 
-#include "core/restir/reservoir.h"
+#include "core/render/reservoir.h"
 #include "core/scene/scene.h"
 
 namespace invr {

@@ -15,7 +15,6 @@ void Scene::finalize(bool accelerate) {
   for (const auto& m : meshes)
     for (const auto& p : m.positions) { boundsMin = vmin(boundsMin, p); boundsMax = vmax(boundsMax, p); }
   if (meshes.empty()) { boundsMin = Vec3(-1.f); boundsMax = Vec3(1.f); }
-  faceNormals_.assign(meshes.size(), {});
   for (uint32_t m = 0; m < meshes.size(); ++m) computeFaceNormals(m);
   radius = std::max(0.5f * length(boundsMax - boundsMin), 1e-3f);
 
@@ -58,7 +57,7 @@ void Scene::updateLightSelection() {
 
 void Scene::computeFaceNormals(uint32_t mesh) {
   const TriangleMesh& m = meshes[mesh];
-  auto& out = faceNormals_[mesh];
+  auto& out = meshes[mesh].faceNormals;
   out.resize(m.triangleCount());
   for (size_t t = 0; t < out.size(); ++t) {
     Vec3 a = m.positions[m.indices[3 * t]], b = m.positions[m.indices[3 * t + 1]], c = m.positions[m.indices[3 * t + 2]];
@@ -219,7 +218,7 @@ SurfaceHit Scene::surfaceAt(uint32_t mesh, uint32_t tri, float b1, float b2) con
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
   float b0 = 1.f - b1 - b2;
   hit.p = m.positions[i0] * b0 + m.positions[i1] * b1 + m.positions[i2] * b2;
-  hit.ng = faceNormals_[mesh][tri];
+  hit.ng = meshes[mesh].faceNormals[tri];
   if (!m.normals.empty()) {
     Vec3 n = m.normals[i0] * b0 + m.normals[i1] * b1 + m.normals[i2] * b2;
     float len = length(n);

@@ -11,7 +11,7 @@
 #include "core/geometry/embree_scene.h"
 #include "core/lights/light.h"
 #include "core/scene/camera.h"
-#include "core/scene/mesh.h"
+#include "core/geometry/mesh.h"
 #include "core/scene/shape_motion.h"
 
 namespace invr {
@@ -49,6 +49,11 @@ struct SamplingState {
   };
   std::vector<PixelLogits> pixelLogits;
 };
+
+class Scene;
+// Light sampling with the scene's emitter meshes (core/lights/light.h holds the per-light forms).
+LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex = 0);
+LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p);
 
 class Scene {
  public:
@@ -100,7 +105,7 @@ class Scene {
 
   // Unit geometric normal of a triangle (from its winding), precomputed: cheaper than a cross
   // product and a square root on every hit.
-  Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return faceNormals_[mesh][tri]; }
+  Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return meshes[mesh].faceNormals[tri]; }
 
   bool intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax = std::numeric_limits<float>::infinity()) const;
   // The surface point with barycentrics (b1, b2) on a triangle, in the current geometry: how
@@ -137,6 +142,8 @@ class Scene {
   float selectionPower(size_t light) const { return power_[light]; }
   double selectionPowerTotal() const { return powerTotal_; }
   const std::vector<uint32_t>& infiniteLights() const { return infiniteLights_; }
+  // An area light's emitter mesh; null for other lights.
+  const TriangleMesh* emitterOf(const Light& l) const { return l.kind == LightKind::Area ? &meshes[l.mesh] : nullptr; }
 
   EmbreeScene accel;
 
@@ -147,12 +154,19 @@ class Scene {
   std::vector<float> power_;
   double powerTotal_ = 0;
   std::vector<uint32_t> infiniteLights_;
-  std::vector<std::vector<Vec3>> faceNormals_;
   std::vector<bool> dynamicMeshes_;
   std::vector<std::unique_ptr<EmbreeScene>> restAccel_;  // per moving mesh: its rest pose
   bool occludedByStatic(Vec3 o, Vec3 d, float tmax) const;
   uint64_t geometryVersion_ = 0;
   bool accelerated_ = false;
 };
+
+inline LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex) {
+  return sampleLight(light, scene.emitterOf(light), p, u2, lightIndex);
+}
+inline LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p) {
+  const Light& light = scene.lights[ref.light];
+  return evalLightSample(light, scene.emitterOf(light), ref, p);
+}
 
 }  // namespace invr

@@ -7,6 +7,7 @@
 #include "core/error.h"
 #include "core/image/procedural.h"
 #include "core/io/job_io.h"
+#include "core/io/mesh_io.h"
 #include "core/scene/zoo.h"
 
 namespace invr {
@@ -418,17 +419,5 @@ std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver
   }
 }
 
-RenderOptions renderOptionsFrom(const v1::RenderSettings& r) {
-  validateRenderSettings(r);
-  RenderOptions o;
-  o.spp = r.spp() > 0 ? r.spp() : 16;
-  o.maxDepth = r.max_depth() > 0 ? r.max_depth() : 1;
-  o.estimator = r.estimator() == v1::ESTIMATOR_RIS ? LightEstimator::Ris : LightEstimator::NeeMis;
-  o.risCandidates = r.ris_candidates() > 0 ? r.ris_candidates() : 8;
-  o.risVisibilityInTarget = r.ris_visibility_in_target();
-  o.russianRouletteDepth = r.russian_roulette_depth() > 0 ? r.russian_roulette_depth() : 3;
-  o.seed = r.seed();
-  return o;
-}
 
 }  // namespace invr

@@ -6,8 +6,7 @@
 #include <functional>
 #include <memory>
 
-#include "core/io/limits.h"
-#include "core/render/render_options.h"
+#include "core/limits.h"
 #include "core/scene/scene.h"
 #include "invr/v1/job.pb.h"
 #include "invr/v1/scene.pb.h"
@@ -33,8 +32,5 @@ std::unique_ptr<Scene> buildScene(const invr::v1::Scene& spec, const AssetResolv
 
 // The job's scene: its zoo entry or inline scene.
 std::unique_ptr<Scene> buildJobScene(const invr::v1::JobSpec& job, const AssetResolver& assets = {}, SceneUse use = SceneUse::Render);
-
-// Defaults applied for zero-valued fields (proto3 has no presence for scalars).
-RenderOptions renderOptionsFrom(const invr::v1::RenderSettings& settings);
 
 }  // namespace invr

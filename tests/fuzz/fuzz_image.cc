@@ -1,5 +1,5 @@
 // fuzz_png / fuzz_exr / fuzz_hdr: readImage on a file holding the input (OpenImageIO reads files by
-// path), then the promises of core/image/image.h and core/io/limits.h. Built three times with
+// path), then the promises of core/image/image.h and core/limits.h. Built three times with
 // INVR_FUZZ_IMAGE_EXT=".png", ".exr" and ".hdr": OpenImageIO picks its reader by extension (and
 // tries the others when that one fails, as it does for a user's file).
 #include <OpenImageIO/imageio.h>
@@ -14,7 +14,7 @@
 #include <system_error>
 
 #include "core/image/image.h"
-#include "core/io/limits.h"
+#include "core/limits.h"
 #include "tests/fuzz/fuzz_common.h"
 
 #ifndef INVR_FUZZ_IMAGE_EXT

@@ -1,12 +1,12 @@
 // fuzz_obj / fuzz_ply: parseMesh (the bytes of an uploaded .obj or .ply), then validateMesh as the
-// scene builder calls it, then the promises both make (core/scene/mesh.h). Built twice, with
+// scene builder calls it, then the promises both make (core/geometry/mesh.h). Built twice, with
 // INVR_FUZZ_MESH_FORMAT=Obj and =Ply.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
 
-#include "core/scene/mesh.h"
+#include "core/io/mesh_io.h"
 #include "tests/fuzz/fuzz_common.h"
 
 #ifndef INVR_FUZZ_MESH_FORMAT

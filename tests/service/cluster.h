@@ -23,7 +23,7 @@
 #include <thread>
 
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/image/image.h"
 #include "core/io/job_io.h"
 #include "core/optim/local_run.h"

@@ -13,7 +13,7 @@
 #include <map>
 #include <mutex>
 
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 #include "core/scene/zoo.h"
 #include "tests/service/cluster.h"
 #include "tests/test_util.h"

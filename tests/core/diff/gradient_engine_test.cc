@@ -17,8 +17,8 @@
 #include "core/diff/diff_scenes.h"
 #include "core/diff/fd_reference.h"
 #include <tbb/task_arena.h>
-#include "core/diff/problem.h"
-#include "core/diff/zoo_jobs.h"
+#include "core/job/problem.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
 
@@ -289,7 +289,7 @@ TEST(GradientEngine, PixelMiniBatchesCarryTheReservoirsOfUndrawnPixels) {
   // The batch step 1 drew (the engine's own stream for it).
   PixelMap uniform;
   uniform.setProbabilities(std::vector<float>(size_t(P), 1.f / float(P)));
-  PixelBatch drawn = drawPixelBatch(uniform, P / 4, RngKey{streamSeed(r.seed, Stream::PixelBatch), 1, 0, 0, 0});
+  PixelBatch drawn = drawPixelBatch(uniform, P / 4, RngKey{streamSeed(r.seed, kPixelBatchStream), 1, 0, 0, 0});
   size_t expected = 0;
   const Camera& cam = f.scene->cameras[0];
   for (const auto& q : old) {

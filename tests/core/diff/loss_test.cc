@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "core/math/rng.h"
-#include "core/scene/texture.h"
+#include "core/image/texture.h"
 #include "test_util.h"
 
 #include <cstdio>

@@ -8,7 +8,7 @@
 #include <unistd.h>
 
 #include "core/error.h"
-#include "core/io/limits.h"
+#include "core/limits.h"
 #include "tests/test_util.h"
 
 namespace invr {

@@ -27,13 +27,13 @@ TEST(Rng, SameKeySameStreamDifferentKeyDifferentStream) {
 // seed s's stage-1 streams seed s + 1's primal and derivative ones).
 TEST(Rng, NeighbouringSeedsShareNoStream) {
   std::set<uint64_t> seen;
-  const Stream all[] = {Stream::Primal, Stream::Derivative, Stream::Stage1Primal, Stream::Stage1Derivative, Stream::Target,
-                        Stream::PixelBatch, Stream::ViewBatch, Stream::FinalRender, Stream::ImageError};
+  std::vector<StreamId> all;
+  for (uint64_t id = 1; id <= 16; ++id) all.push_back(StreamId{id});
   for (uint64_t seed = 0; seed < 4096; ++seed)
-    for (Stream s : all) EXPECT_TRUE(seen.insert(streamSeed(seed, s)).second) << "seed " << seed << " stream " << uint64_t(s);
+    for (StreamId s : all) EXPECT_TRUE(seen.insert(streamSeed(seed, s)).second) << "seed " << seed << " stream " << s.value;
   // The first numbers of neighbouring seeds' streams differ too (not only their keys).
-  for (Stream a : all)
-    for (Stream b : all) {
+  for (StreamId a : all)
+    for (StreamId b : all) {
       Sampler x(RngKey{streamSeed(7, a), 3, 0, 5, 0}), y(RngKey{streamSeed(8, b), 3, 0, 5, 0});
       EXPECT_NE(x.nextBits(), y.nextBits());
     }

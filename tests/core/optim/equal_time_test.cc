@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/optim/equal_time.h"
 

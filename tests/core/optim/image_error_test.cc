@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/optim/image_error.h"
 

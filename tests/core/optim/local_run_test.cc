@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/scene/zoo.h"
 

@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <string>
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/optim/local_run.h"
 
 namespace invr {

@@ -128,5 +128,15 @@ TEST(Renderer, RejectsBadArguments) {
   EXPECT_THROW(renderView(*scene, 0, opt), InputError);
 }
 
+TEST(Renderer, RenderSettingsDefaultsAndErrors) {
+  invr::v1::RenderSettings r;
+  RenderOptions o = renderOptionsFrom(r);
+  EXPECT_EQ(o.spp, 16);
+  EXPECT_EQ(o.maxDepth, 1);
+  EXPECT_EQ(o.estimator, LightEstimator::NeeMis);
+  r.set_spp(-1);
+  EXPECT_THROW(renderOptionsFrom(r), InputError);
+}
+
 }  // namespace
 }  // namespace invr

@@ -130,15 +130,5 @@ TEST(SceneBuilder, ReferencesAndValuesAreChecked) {
       "shapes": [{"name": "q", "material": "m", "quad": {}}], "views": [)" + views + "]}"), "at most 65535 camera views");
 }
 
-TEST(SceneBuilder, RenderSettingsDefaultsAndErrors) {
-  invr::v1::RenderSettings r;
-  RenderOptions o = renderOptionsFrom(r);
-  EXPECT_EQ(o.spp, 16);
-  EXPECT_EQ(o.maxDepth, 1);
-  EXPECT_EQ(o.estimator, LightEstimator::NeeMis);
-  r.set_spp(-1);
-  EXPECT_THROW(renderOptionsFrom(r), InputError);
-}
-
 }  // namespace
 }  // namespace invr

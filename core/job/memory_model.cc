@@ -1,4 +1,4 @@
-#include "core/diff/memory_model.h"
+#include "core/job/memory_model.h"
 
 #include <algorithm>
 

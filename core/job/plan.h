@@ -3,8 +3,8 @@
 // answers PlanJob with it from its workers' view (their thread count).
 #pragma once
 
-#include "core/diff/memory_model.h"
-#include "core/diff/problem.h"
+#include "core/job/memory_model.h"
+#include "core/job/problem.h"
 #include "invr/v1/service.pb.h"
 
 namespace invr {

@@ -1,8 +1,8 @@
-#include "client/job_argument.h"
+#include "client/common/job_argument.h"
 
 #include <iostream>
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/io/mitsuba_import.h"

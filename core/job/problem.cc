@@ -1,4 +1,4 @@
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 
 #include <algorithm>
 #include <cmath>
@@ -297,7 +297,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   return p;
 }
 
-RenderOptions transportRenderOptions(const Problem& p, int spp, Stream stream) {
+RenderOptions transportRenderOptions(const Problem& p, int spp, StreamId stream) {
   // Targets set the floor of every reconstruction (the optimum fits their noise), so use the
   // lowest-variance estimator we have: visibility-aware RIS with 16 candidates.
   RenderOptions ro;
@@ -315,7 +315,7 @@ RenderOptions transportRenderOptions(const Problem& p, int spp, Stream stream) {
   return ro;
 }
 
-RenderOptions targetRenderOptions(const Problem& p) { return transportRenderOptions(p, p.targetSpp, Stream::Target); }
+RenderOptions targetRenderOptions(const Problem& p) { return transportRenderOptions(p, p.targetSpp, kTargetStream); }
 
 Image renderTarget(Problem& p, int view, const std::atomic<bool>* cancel) {
   if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
@@ -371,7 +371,7 @@ std::vector<int> viewsForStep(const Problem& p, uint64_t step) {
   std::iota(all.begin(), all.end(), 0);
   if (p.viewsPerStep >= n) return all;
   // Fisher-Yates with counter-based randomness: the batch depends only on (seed, step).
-  Sampler s(RngKey{streamSeed(p.seed, Stream::ViewBatch), step, 0, 0, 0});
+  Sampler s(RngKey{streamSeed(p.seed, kViewBatchStream), step, 0, 0, 0});
   for (int i = n - 1; i > 0; --i) std::swap(all[size_t(i)], all[size_t(s.nextBits() % uint64_t(i + 1))]);
   all.resize(size_t(p.viewsPerStep));
   std::sort(all.begin(), all.end());

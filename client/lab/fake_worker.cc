@@ -15,7 +15,7 @@
 #include <mutex>
 #include <thread>
 
-#include "client/commands.h"
+#include "client/lab/lab_commands.h"
 #include "invr/v1/service.grpc.pb.h"
 #include "proto/wire/wire.h"
 

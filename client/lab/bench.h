@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "client/bench_report.h"
+#include "client/lab/bench_report.h"
 
 namespace invr::cli {
 
@@ -48,7 +48,7 @@ struct PixelBenchArgs {
 BenchReport benchPixelVariance(const PixelBenchArgs& args);
 
 // Variance-aware rendering (Yan et al. 2024) on the zoo's rings, spot and roulette jobs: one report
-// per scene (client/bench_variance.cc says what each measures).
+// per scene (client/lab/bench_variance.cc says what each measures).
 struct VarianceBenchArgs {
   std::string scene = "all";
   double seconds = 20;        // rings: per estimator at equal time

@@ -1,4 +1,4 @@
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 
 #include "core/scene/zoo.h"
 

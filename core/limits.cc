@@ -1,4 +1,4 @@
-#include "core/io/limits.h"
+#include "core/limits.h"
 
 #include <cstdio>
 

@@ -15,12 +15,12 @@
 #include <iostream>
 #include <memory>
 
-#include "client/bench.h"
-#include "client/commands.h"
+#include "client/lab/bench.h"
+#include "client/lab/lab_commands.h"
 #include "core/diff/interior_estimator.h"
 #include "core/diff/pass_driver.h"
-#include "core/diff/problem.h"
-#include "core/diff/zoo_jobs.h"
+#include "core/job/problem.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/lights/light_selection.h"
 #include "core/math/rng.h"
@@ -85,7 +85,7 @@ double besselVariance(const PassOutput& pr, int spp, const PixelBatch* batch) {
 std::vector<double> varianceGradient(const Problem& p, uint64_t seed, uint64_t step, bool detached, GradientOptions o) {
   const Scene& s = *p.scene;
   o.variance.detached = detached;
-  PassOutput primal = tracePass(p, 0, streamSeed(seed, Stream::Primal), step, 1);
+  PassOutput primal = tracePass(p, 0, streamSeed(seed, kPrimalStream), step, 1);
   GradientScratchPool pool(p.params.size());
   auto est = makePtEstimator({s, p.params, o, 0, o.variance.spp, nullptr});
   Image adjoint(s.width, s.height, 3);
@@ -93,7 +93,7 @@ std::vector<double> varianceGradient(const Problem& p, uint64_t seed, uint64_t s
   std::fill(adjoint.data().begin(), adjoint.data().end(), a);
   PassSpec spec;
   spec.kind = PassKind::Variance;
-  spec.stream = streamSeed(seed, Stream::Variance);
+  spec.stream = streamSeed(seed, kVarianceStream);
   spec.step = step;
   spec.spp = o.variance.spp;
   spec.adjoint = &adjoint;
@@ -142,8 +142,8 @@ BenchReport benchRings(const VarianceBenchArgs& a) {
       std::vector<float> th = p.initial;
       th[0] = float(at[k]);
       p.params.write(th, *p.scene);
-      PassOutput i1 = tracePass(p, 0, streamSeed(a.seed, Stream::Primal), uint64_t(r), a.fdSpp);
-      PassOutput sq = tracePass(p, 0, streamSeed(a.seed, Stream::Variance), uint64_t(r), a.fdSpp, nullptr, true);
+      PassOutput i1 = tracePass(p, 0, streamSeed(a.seed, kPrimalStream), uint64_t(r), a.fdSpp);
+      PassOutput sq = tracePass(p, 0, streamSeed(a.seed, kVarianceStream), uint64_t(r), a.fdSpp, nullptr, true);
       v[k] = varianceEstimate(i1, sq);
     }
     const double full = (v[0] - v[1]) / (2 * h), half = (v[2] - v[3]) / h;
@@ -238,7 +238,7 @@ BenchReport benchSpot(const VarianceBenchArgs& a) {
   LocalRunResult res = optimiseZooJob("spot", a.spotSteps, p, rep);
   if (p.scene->lights.size() != 2) throw std::logic_error("bench variance: spot should have two lights");
   const int spp = a.measureSpp;
-  const uint64_t stream = streamSeed(a.seed, Stream::VarianceMap);
+  const uint64_t stream = streamSeed(a.seed, kVarianceMapStream);
   auto meanVariance = [&] { return besselVariance(tracePass(p, 0, stream, 0, spp, nullptr, true), spp, nullptr); };
   // At the optimised map (runLocally left theta in the scene).
   const double vOpt = meanVariance();
@@ -319,7 +319,7 @@ BenchReport benchRoulette(const VarianceBenchArgs& a) {
   const int spp = a.measureSpp;
   auto measure = [&] {
     auto t = Clock::now();
-    PassOutput pr = tracePass(p, 0, streamSeed(a.seed, Stream::VarianceMap), 0, spp, nullptr, true);
+    PassOutput pr = tracePass(p, 0, streamSeed(a.seed, kVarianceMapStream), 0, spp, nullptr, true);
     return Cost{double(pr.rays.total()) / double(pr.rays.camera), besselVariance(pr, spp, nullptr), since(t)};
   };
   const std::vector<float> optimised = p.scene->sampling.survival;

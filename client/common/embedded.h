@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "client/exit_codes.h"
-#include "client/service_client.h"
+#include "client/common/exit_codes.h"
+#include "client/common/service_client.h"
 #include "server/server.h"
 
 extern char** environ;

@@ -6,8 +6,8 @@
 #include <iostream>
 #include <memory>
 
-#include "client/bench_report.h"
-#include "client/commands.h"
+#include "client/lab/bench_report.h"
+#include "client/lab/lab_commands.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"

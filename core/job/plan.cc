@@ -1,4 +1,4 @@
-#include "core/diff/plan.h"
+#include "core/job/plan.h"
 
 #include <algorithm>
 #include <cstdio>

@@ -8,10 +8,10 @@
 #include <map>
 #include <iostream>
 
-#include "client/bench.h"
-#include "client/commands.h"
-#include "core/diff/problem.h"
-#include "core/diff/zoo_jobs.h"
+#include "client/lab/bench.h"
+#include "client/lab/lab_commands.h"
+#include "core/job/problem.h"
+#include "core/job/zoo_jobs.h"
 
 namespace invr::cli {
 

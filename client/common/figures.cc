@@ -1,4 +1,4 @@
-#include "client/figures.h"
+#include "client/common/figures.h"
 
 #include <fcntl.h>
 #include <spawn.h>
@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "client/figures_script.h"  // kFiguresScript, generated from client/figures.py
+#include "client/common/figures_script.h"  // kFiguresScript, generated from client/common/figures.py
 
 extern char** environ;
 

@@ -22,13 +22,13 @@
 #include <sstream>
 #include <thread>
 
-#include "client/bench.h"
-#include "client/commands.h"
-#include "core/diff/zoo_jobs.h"
+#include "client/lab/bench.h"
+#include "client/lab/lab_commands.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/optim/equal_time.h"
-#include "client/figures.h"
+#include "client/common/figures.h"
 
 namespace invr::cli {
 

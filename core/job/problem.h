@@ -6,11 +6,15 @@
 #include <memory>
 
 #include "core/diff/gradient_engine.h"
-#include "core/optim/optimizer.h"
+#include "core/job/optimizer_settings.h"
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"
 
 namespace invr {
+
+inline constexpr StreamId kTargetStream{5};       // ground-truth targets
+inline constexpr StreamId kViewBatchStream{7};    // which views a step renders
+inline constexpr StreamId kFinalRenderStream{8};  // renders of the result
 
 struct Problem {
   std::unique_ptr<Scene> scene;
@@ -52,7 +56,7 @@ Problem buildProblem(const invr::v1::JobSpec& job, const AssetResolver& assets =
 // meter all render through it, so they show what the gradients differentiate (optimization.
 // max_depth vertices; direct illumination with visibility-aware RIS over 16 candidates, longer
 // paths with NEE + MIS), on random stream `stream` of the job.
-RenderOptions transportRenderOptions(const Problem& problem, int spp, Stream stream);
+RenderOptions transportRenderOptions(const Problem& problem, int spp, StreamId stream);
 
 // Ground-truth targets: the truth rendered through the job's transport at target_spp.
 // Uploaded targets are returned as given.

@@ -1,4 +1,4 @@
-#include "client/service_client.h"
+#include "client/common/service_client.h"
 
 #include <google/protobuf/util/json_util.h>
 
@@ -6,7 +6,7 @@
 #include <fstream>
 #include <thread>
 
-#include "client/exit_codes.h"
+#include "client/common/exit_codes.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "proto/wire/wire.h"

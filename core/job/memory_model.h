@@ -4,7 +4,7 @@
 
 #include <cstdint>
 
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 
 namespace invr {
 

@@ -1,6 +1,6 @@
 // Figures drawn by matplotlib under Debian's /usr/bin/python3: convergence charts and
 // side-by-side image grids, by the client only (the renderer and the server write CSVs and
-// images; charts are drawn where someone looks at them). The script (client/figures.py) is
+// images; charts are drawn where someone looks at them). The script (client/common/figures.py) is
 // compiled into the program, so nothing needs installing next to it.
 #pragma once
 

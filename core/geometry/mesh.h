@@ -1,8 +1,7 @@
-// Triangle meshes: built-in primitives, OBJ/PLY loading and validation.
+// Triangle meshes: the data, built-in primitives and validation (OBJ/PLY reading: core/io/mesh_io.h).
 #pragma once
 
 #include <cstdint>
-#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -15,6 +14,9 @@ struct TriangleMesh {
   std::vector<Vec3> normals;  // per vertex, optional (empty = flat shading)
   std::vector<Vec2> uvs;      // per vertex, optional
   std::vector<uint32_t> indices;  // 3 per triangle
+  // Unit geometric normal per triangle (from its winding); filled and kept current by the Scene that
+  // holds the mesh (Scene::finalize, vertex updates), empty elsewhere.
+  std::vector<Vec3> faceNormals;
 
   size_t triangleCount() const { return indices.size() / 3; }
   float triangleArea(size_t tri) const;
@@ -30,18 +32,6 @@ TriangleMesh makeSphere(int rings);
 TriangleMesh makeDisk(int segments);  // radius 1 in the xy plane, normal +z
 TriangleMesh makeCylinder(int segments, bool capped);
 TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments);
-
-// Loads .obj (tinyobjloader) or .ply (ascii / binary little- and big-endian).
-// Throws InputError naming the file on any problem: malformed or truncated data, indices out of
-// range, non-finite numbers; ResourceError when a count the file declares exceeds inputLimits().
-// With a budget, the peak memory of reading and parsing (a multiple of the file's size: 8x for
-// OBJ, 4x for PLY) is charged before the file is read and released once the mesh is built.
-class MemoryBudget;
-TriangleMesh loadMesh(const std::filesystem::path& path, MemoryBudget* budget = nullptr);
-
-enum class MeshFormat { Obj, Ply };
-// The same from bytes in memory; `name` is what errors call the mesh.
-TriangleMesh parseMesh(const std::string& bytes, MeshFormat format, const std::string& name);
 
 // Throws InputError("<what>: ...") if the mesh is empty, has out-of-range indices, non-finite
 // positions, normals or uvs, attribute arrays whose size differs from the positions, an edge

@@ -7,11 +7,11 @@
 #include <iostream>
 #include <memory>
 
-#include "client/bench.h"
-#include "client/commands.h"
-#include "client/job_argument.h"
-#include "core/diff/problem.h"
-#include "core/diff/zoo_jobs.h"
+#include "client/lab/bench.h"
+#include "client/lab/lab_commands.h"
+#include "client/common/job_argument.h"
+#include "core/job/problem.h"
+#include "core/job/zoo_jobs.h"
 #include "core/optim/equal_time.h"
 #include "core/error.h"
 

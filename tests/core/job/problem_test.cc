@@ -1,12 +1,12 @@
 // Inverse problems from job JSON: every mistake names the field; mini-batches are deterministic.
-#include "core/diff/problem.h"
+#include "core/job/problem.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 
-#include "core/diff/zoo_jobs.h"
+#include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/image/image.h"
@@ -134,13 +134,13 @@ TEST(Problem, OneLightTransportForTargetsGradientsAndRenders) {
   EXPECT_EQ(with(R"({"spp": 8})", R"({"method": "METHOD_PT", "max_depth": 4, )" + albedo + "}"), "");
   auto job = parseJobJson(R"({"zoo": "cornell", "optimization": {"method": "METHOD_PT", "max_depth": 4, )" + albedo + "}}", "job.json");
   Problem p = buildProblem(job);
-  for (Stream s : {Stream::Target, Stream::FinalRender, Stream::ImageError}) {
+  for (StreamId s : {kTargetStream, kFinalRenderStream, StreamId{9}}) {
     RenderOptions ro = transportRenderOptions(p, 16, s);
     EXPECT_EQ(ro.maxDepth, 4);
     EXPECT_EQ(ro.estimator, LightEstimator::NeeMis);
   }
   EXPECT_EQ(targetRenderOptions(p).maxDepth, 4);
-  EXPECT_NE(transportRenderOptions(p, 16, Stream::Target).seed, transportRenderOptions(p, 16, Stream::FinalRender).seed);
+  EXPECT_NE(transportRenderOptions(p, 16, kTargetStream).seed, transportRenderOptions(p, 16, kFinalRenderStream).seed);
 }
 
 TEST(Problem, InitialValuesAndBatchesAreDeterministic) {

@@ -20,11 +20,11 @@
 #include <iostream>
 #include <thread>
 
-#include "client/bench_report.h"
-#include "client/commands.h"
-#include "client/embedded.h"
-#include "client/service_client.h"
-#include "core/diff/zoo_jobs.h"
+#include "client/lab/bench_report.h"
+#include "client/lab/lab_commands.h"
+#include "client/common/embedded.h"
+#include "client/common/service_client.h"
+#include "core/job/zoo_jobs.h"
 #include "core/scene/zoo.h"
 #include "core/optim/local_run.h"
 #include "server/server.h"

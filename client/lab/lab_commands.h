@@ -1,0 +1,17 @@
+// The lab's commands (`invr bench ...`, `invr eval`): benchmarks and the speed-against-accuracy
+// suite, registered on the CLI by client/main.cc. Each callback runs its command and sets `exitCode`.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace invr::cli {
+
+void addBenchCommand(CLI::App& app, int& exitCode);  // bench rays, overhead, reconstruct, and the ones below
+void addBenchGradientCommands(CLI::App& bench, int& exitCode);
+void addBenchServiceCommand(CLI::App& bench, int& exitCode);
+void addBenchFakeWorkerCommand(CLI::App& bench, int& exitCode);
+void addBenchPixelCommand(CLI::App& bench, int& exitCode);
+void addBenchVarianceCommand(CLI::App& bench, int& exitCode);
+void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
+
+}  // namespace invr::cli

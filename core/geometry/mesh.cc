@@ -1,0 +1,254 @@
+#include "core/geometry/mesh.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <unordered_map>
+
+#include "core/error.h"
+
+namespace invr {
+
+float TriangleMesh::triangleArea(size_t tri) const {
+  Vec3 a = positions[indices[3 * tri]], b = positions[indices[3 * tri + 1]], c = positions[indices[3 * tri + 2]];
+  return 0.5f * length(cross(b - a, c - a));
+}
+
+void TriangleMesh::transform(const Affine& xf) {
+  for (auto& p : positions) p = xf.point(p);
+  if (!normals.empty()) {
+    // Normals transform with the inverse transpose; the cofactor matrix is that up to a scale.
+    auto col = [&](int j) { return Vec3(xf.m[0][j], xf.m[1][j], xf.m[2][j]); };
+    Vec3 c0 = cross(col(1), col(2)), c1 = cross(col(2), col(0)), c2 = cross(col(0), col(1));
+    for (auto& n : normals) n = normalize(c0 * n.x + c1 * n.y + c2 * n.z);
+  }
+}
+
+void computeSmoothNormals(TriangleMesh& m) {
+  std::vector<Vec3> n(m.positions.size(), Vec3(0.f));
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    const uint32_t* i = &m.indices[3 * t];
+    Vec3 p[3] = {m.positions[i[0]], m.positions[i[1]], m.positions[i[2]]};
+    Vec3 fn = cross(p[1] - p[0], p[2] - p[0]);
+    if (!(lengthSquared(fn) > 0.f)) continue;
+    fn = normalize(fn);
+    for (int k = 0; k < 3; ++k) {
+      Vec3 a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+      float la = length(a), lb = length(b);
+      if (!(la > 0.f && lb > 0.f)) continue;
+      float angle = std::acos(std::clamp(dot(a, b) / (la * lb), -1.f, 1.f));
+      n[i[k]] += fn * angle;
+    }
+  }
+  for (size_t v = 0; v < n.size(); ++v) {
+    // A vertex no triangle gives a direction (isolated or only degenerate) keeps +z: unused.
+    n[v] = lengthSquared(n[v]) > 0.f ? normalize(n[v]) : Vec3(0, 0, 1);
+  }
+  m.normals = std::move(n);
+}
+
+void TriangleMesh::flipWinding(bool flipNormals) {
+  for (size_t t = 0; t + 2 < indices.size(); t += 3) std::swap(indices[t + 1], indices[t + 2]);
+  if (flipNormals)
+    for (auto& n : normals) n = -n;
+}
+
+TriangleMesh makeDisk(int segments) {
+  TriangleMesh m;
+  m.positions.push_back({0, 0, 0});
+  m.uvs.push_back({0, 0});
+  for (int j = 0; j < segments; ++j) {
+    float phi = 2.f * kPi * float(j) / float(segments);
+    m.positions.push_back({std::cos(phi), std::sin(phi), 0});
+    m.uvs.push_back({1.f, float(j) / float(segments)});  // (radius, angle / 2 pi)
+  }
+  for (int j = 0; j < segments; ++j) m.indices.insert(m.indices.end(), {0u, uint32_t(1 + j), uint32_t(1 + (j + 1) % segments)});
+  return m;
+}
+
+TriangleMesh makeQuad() {
+  TriangleMesh m;
+  m.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  m.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  return m;
+}
+
+TriangleMesh makeBox() {
+  TriangleMesh m;
+  // Each face: normal axis, then two tangent axes ordered so the winding faces outward.
+  for (int axis = 0; axis < 3; ++axis)
+    for (int sign = -1; sign <= 1; sign += 2) {
+      Vec3 n(0.f), u(0.f), v(0.f);
+      n[axis] = float(sign);
+      u[(axis + 1) % 3] = 1.f;
+      v[(axis + 2) % 3] = 1.f;
+      if (sign < 0) std::swap(u, v);
+      uint32_t base = uint32_t(m.positions.size());
+      Vec2 uv[4] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+      Vec3 corners[4] = {n - u - v, n + u - v, n + u + v, n - u + v};
+      for (int k = 0; k < 4; ++k) { m.positions.push_back(corners[k]); m.uvs.push_back(uv[k]); }
+      for (uint32_t k : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + k);
+    }
+  return m;
+}
+
+TriangleMesh makeSphere(int rings) {
+  TriangleMesh m;
+  int segs = 2 * rings;
+  for (int i = 0; i <= rings; ++i) {
+    float theta = kPi * float(i) / float(rings);
+    for (int j = 0; j <= segs; ++j) {
+      float phi = 2.f * kPi * float(j % segs) / float(segs);  // exact seam
+      Vec3 p(std::sin(theta) * std::cos(phi), std::cos(theta), -std::sin(theta) * std::sin(phi));
+      m.positions.push_back(p);
+      m.normals.push_back(p);
+      m.uvs.push_back({float(j) / float(segs), 1.f - float(i) / float(rings)});
+    }
+  }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segs; ++j) {
+      uint32_t a = uint32_t(i * (segs + 1) + j), b = a + 1, c = a + uint32_t(segs + 1), d = c + 1;
+      // Skip the zero-area triangles at the poles.
+      if (i != 0) { m.indices.insert(m.indices.end(), {a, c, b}); }
+      if (i != rings - 1) { m.indices.insert(m.indices.end(), {b, c, d}); }
+    }
+  return m;
+}
+
+TriangleMesh makeCylinder(int segments, bool capped) {
+  TriangleMesh m;
+  for (int j = 0; j <= segments; ++j) {
+    float phi = 2.f * kPi * float(j % segments) / float(segments);  // exact seam
+    Vec3 n(std::cos(phi), std::sin(phi), 0.f);
+    for (float z : {-1.f, 1.f}) {
+      m.positions.push_back({n.x, n.y, z});
+      m.normals.push_back(n);
+      m.uvs.push_back({float(j) / float(segments), 0.5f * (z + 1.f)});
+    }
+  }
+  for (int j = 0; j < segments; ++j) {
+    uint32_t a = uint32_t(2 * j), b = a + 1, c = a + 2, d = a + 3;
+    m.indices.insert(m.indices.end(), {a, c, d, a, d, b});
+  }
+  if (capped) {
+    for (float z : {-1.f, 1.f}) {
+      uint32_t center = uint32_t(m.positions.size());
+      Vec3 n(0, 0, z);
+      m.positions.push_back({0, 0, z}); m.normals.push_back(n); m.uvs.push_back({0.5f, 0.5f});
+      for (int j = 0; j < segments; ++j) {
+        float phi = 2.f * kPi * float(j) / float(segments);
+        m.positions.push_back({std::cos(phi), std::sin(phi), z});
+        m.normals.push_back(n);
+        m.uvs.push_back({0.5f + 0.5f * std::cos(phi), 0.5f + 0.5f * std::sin(phi)});
+      }
+      for (int j = 0; j < segments; ++j) {
+        uint32_t a = center + 1 + uint32_t(j), b = center + 1 + uint32_t((j + 1) % segments);
+        if (z > 0) m.indices.insert(m.indices.end(), {center, a, b});
+        else m.indices.insert(m.indices.end(), {center, b, a});
+      }
+    }
+  }
+  return m;
+}
+
+TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments) {
+  auto curve = [&](float t) {
+    float r = 2.f + std::cos(float(q) * t);
+    return Vec3(r * std::cos(float(p) * t), r * std::sin(float(p) * t), -std::sin(float(q) * t)) / 3.f;
+  };
+  auto tangentAt = [&](float t) { return normalize(curve(t + 1e-3f) - curve(t - 1e-3f)); };
+  // Parallel-transport a normal along the closed curve; it comes back rotated by the holonomy
+  // angle, which is spread evenly over the rings so the tube closes without a twist at the seam.
+  std::vector<Vec3> normals(size_t(segments) + 1), tangents(size_t(segments) + 1);
+  Vec3 n = normalize(cross(tangentAt(0.f), Vec3(0, 0, 1)));
+  for (int i = 0; i <= segments; ++i) {
+    Vec3 t = tangentAt(2.f * kPi * float(i) / float(segments));
+    n = normalize(n - t * dot(n, t));
+    normals[size_t(i)] = n;
+    tangents[size_t(i)] = t;
+  }
+  Vec3 n0 = normals[0], t0 = tangents[0];
+  float twist = std::atan2(dot(cross(n0, normals[size_t(segments)]), t0), dot(n0, normals[size_t(segments)]));
+  TriangleMesh m;
+  for (int i = 0; i <= segments; ++i) {
+    if (i == segments) {  // the closing ring repeats ring 0 exactly (only its uvs differ)
+      for (int j = 0; j <= tubeSegments; ++j) {
+        m.positions.push_back(m.positions[size_t(j)]);
+        m.normals.push_back(m.normals[size_t(j)]);
+        m.uvs.push_back({1.f, float(j) / float(tubeSegments)});
+      }
+      break;
+    }
+    Vec3 c = curve(2.f * kPi * float(i) / float(segments));
+    Vec3 t = tangents[size_t(i)];
+    float undo = -twist * float(i) / float(segments);
+    Vec3 b0 = cross(t, normals[size_t(i)]);
+    Vec3 normal = normals[size_t(i)] * std::cos(undo) + b0 * std::sin(undo);
+    Vec3 binormal = cross(t, normal);
+    for (int j = 0; j <= tubeSegments; ++j) {
+      float a = 2.f * kPi * float(j % tubeSegments) / float(tubeSegments);
+      Vec3 dir = normal * std::cos(a) + binormal * std::sin(a);
+      m.positions.push_back(j == tubeSegments ? m.positions[m.positions.size() - size_t(tubeSegments)] : c + dir * tubeRadius);
+      m.normals.push_back(dir);
+      m.uvs.push_back({float(i) / float(segments), float(j) / float(tubeSegments)});
+    }
+  }
+  uint32_t row = uint32_t(tubeSegments + 1);
+  for (int i = 0; i < segments; ++i)
+    for (int j = 0; j < tubeSegments; ++j) {
+      uint32_t a = uint32_t(i) * row + uint32_t(j), b = a + 1, c = a + row, d = c + 1;
+      m.indices.insert(m.indices.end(), {a, d, c, a, b, d});  // outward winding
+    }
+  return m;
+}
+
+size_t validateMesh(TriangleMesh& mesh, const std::string& what) {
+  if (mesh.positions.empty() || mesh.indices.empty()) throw InputError(what + ": mesh is empty (no triangles)");
+  if (mesh.indices.size() % 3 != 0) throw InputError(what + ": index count is not a multiple of 3");
+  for (size_t i = 0; i < mesh.positions.size(); ++i)
+    if (!isFinite(mesh.positions[i])) throw InputError(what + ": vertex " + std::to_string(i) + " is not finite");
+  if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+    throw InputError(what + ": " + std::to_string(mesh.normals.size()) + " normals for " + std::to_string(mesh.positions.size()) + " vertices");
+  if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
+    throw InputError(what + ": " + std::to_string(mesh.uvs.size()) + " uvs for " + std::to_string(mesh.positions.size()) + " vertices");
+  for (size_t i = 0; i < mesh.normals.size(); ++i)
+    if (!isFinite(mesh.normals[i])) throw InputError(what + ": normal " + std::to_string(i) + " is not finite");
+  for (size_t i = 0; i < mesh.uvs.size(); ++i)
+    if (!std::isfinite(mesh.uvs[i].x) || !std::isfinite(mesh.uvs[i].y)) throw InputError(what + ": uv " + std::to_string(i) + " is not finite");
+  for (uint32_t idx : mesh.indices)
+    if (idx >= mesh.positions.size()) throw InputError(what + ": triangle index " + std::to_string(idx) + " out of range");
+  // Remove degenerate triangles first: they carry no area and would break the edge count.
+  std::vector<uint32_t> kept;
+  kept.reserve(mesh.indices.size());
+  size_t removed = 0;
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    uint32_t a = mesh.indices[3 * t], b = mesh.indices[3 * t + 1], c = mesh.indices[3 * t + 2];
+    if (a == b || b == c || a == c || !(mesh.triangleArea(t) > 0.f)) { ++removed; continue; }
+    kept.insert(kept.end(), {a, b, c});
+  }
+  if (kept.empty()) throw InputError(what + ": mesh has zero area (every triangle is degenerate)");
+  mesh.indices = std::move(kept);
+  // Non-manifold check on positions (not vertex ids: seams duplicate vertices for uvs/normals).
+  std::map<std::array<uint32_t, 3>, uint32_t> posId;
+  std::vector<uint32_t> canon(mesh.positions.size());
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    std::array<uint32_t, 3> bits;
+    std::memcpy(bits.data(), &mesh.positions[i], sizeof bits);
+    canon[i] = posId.try_emplace(bits, uint32_t(i)).first->second;
+  }
+  std::unordered_map<uint64_t, int> edgeCount;
+  for (size_t t = 0; t < mesh.triangleCount(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t a = canon[mesh.indices[3 * t + k]], b = canon[mesh.indices[3 * t + (k + 1) % 3]];
+      if (a > b) std::swap(a, b);
+      if (++edgeCount[(uint64_t(a) << 32) | b] > 2)
+        throw InputError(what + ": mesh is non-manifold (an edge is shared by more than two triangles, triangle " +
+                         std::to_string(t) + ")");
+    }
+  return removed;
+}
+
+}  // namespace invr
