@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <memory>
 
 #include "client/lab/bench_report.h"
@@ -40,25 +41,35 @@ void runOptimize(const OptimizeArgs& a) {
   Problem problem = buildProblem(job, assets);
   std::filesystem::path dir(a.out);
   std::filesystem::create_directories(dir);
-  std::ofstream csv(dir / "convergence.csv");
-  if (!csv) throw InputError("-o: cannot write to '" + a.out + "'");
-  csv << kConvergenceCsvHeader << "\n";
+  ConvergenceCsv csv(dir / "convergence.csv");
+  try {
+    csv.write();  // the header: fails now, not after the run, when the folder is not writable
+  } catch (const InputError&) {
+    throw InputError("-o: cannot write to '" + a.out + "'");
+  }
   const char* method = gradientMethodName(problem.gradient.method);
   std::cout << "optimizing " << (job.name().empty() ? a.job : job.name()) << ": " << problem.params.size() << " parameter values, "
             << problem.steps << " steps, method " << method << ", " << problem.scene->cameras.size() << " views\n"
             << "rendering targets (" << problem.targetSpp << " spp)...\n" << std::flush;
   ProgressBar bar("optimize");
   bool tty = isatty(fileno(stdout)) != 0;
-  auto result = runLocally(problem, [&](const StepReport& r) {
-    csv << method << "," << r.step << "," << r.seconds << "," << r.loss << "," << r.parameterError << "\n";
-    bar.update(double(r.step) / problem.steps);
-    if (!tty && (r.step % 10 == 0 || int(r.step) == problem.steps))
-      std::cout << "step " << r.step << "/" << problem.steps << "  loss " << r.loss << "  param_error " << r.parameterError
-                << "  " << r.seconds << " s\n" << std::flush;
-  });
+  LocalRunResult result;
+  try {
+    result = runLocally(problem, [&](const StepReport& r) {
+      csv.add({method, r.step, r.seconds, r.loss, r.parameterError, std::numeric_limits<double>::quiet_NaN(), r.stats});
+      if (csv.rows() % 100 == 0) csv.write();  // a long run's CSV stays current
+      bar.update(double(r.step) / problem.steps);
+      if (!tty && (r.step % 10 == 0 || int(r.step) == problem.steps))
+        std::cout << "step " << r.step << "/" << problem.steps << "  loss " << r.loss << "  param_error " << r.parameterError
+                  << "  " << r.seconds << " s\n" << std::flush;
+    });
+  } catch (const std::exception&) {
+    csv.write();  // the steps that were done (a diverging run's among them)
+    throw;
+  }
+  csv.write();
   bar.finish();
   writeParameters(dir, problem.params, result.theta);
-  csv.close();
   try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
     // Sampling parameters have no ground truth: chart the loss instead.
     const bool truth = parameterError(problem, problem.initial) >= 0;

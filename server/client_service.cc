@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "server/file_sender.h"
+#include "server/raw_messages.h"
 #include "server/write_queue.h"
 
 namespace invr::server {
@@ -12,10 +13,10 @@ namespace v1 = invr::v1;
 namespace {
 
 // A client's WatchJob stream.
-class Watcher final : public grpc::ServerWriteReactor<v1::ProgressEvent>, public EventSink {
+class Watcher final : public grpc::ServerWriteReactor<grpc::ByteBuffer>, public EventSink {
  public:
   Watcher(JobBook& book, std::string job) : book_(book), job_(std::move(job)), out_(this) {}
-  void push(const v1::ProgressEvent& e) override { out_.push(e, e.has_final()); }
+  void push(const v1::ProgressEvent& e) override { out_.push(toBytes(e), e.has_final()); }
   void close(grpc::Status st) override { out_.close(st); }
   void OnWriteDone(bool ok) override { out_.done(ok); }
   void OnCancel() override { out_.close(grpc::Status::CANCELLED); }
@@ -27,24 +28,28 @@ class Watcher final : public grpc::ServerWriteReactor<v1::ProgressEvent>, public
  private:
   JobBook& book_;
   std::string job_;
-  WriteQueue<Watcher, v1::ProgressEvent> out_;
+  WriteQueue<Watcher, grpc::ByteBuffer> out_;
 };
 
-class Uploader final : public grpc::ServerReadReactor<v1::AssetChunk> {
+class Uploader final : public grpc::ServerReadReactor<grpc::ByteBuffer> {
  public:
-  Uploader(const AssetStore& assets, uint64_t maxBytes, v1::AssetInfo* info) : info_(info), up_(assets, maxBytes), max_(maxBytes) {
-    StartRead(&chunk_);
+  Uploader(const AssetStore& assets, uint64_t maxBytes, grpc::ByteBuffer* info) : info_(info), up_(assets, maxBytes), max_(maxBytes) {
+    StartRead(&bytes_);
   }
   void OnReadDone(bool ok) override {
     if (ok) {
+      // A chunk that does not parse ends the upload: nothing of it is kept.
+      if (grpc::Status st = parseRequest(bytes_, chunk_); !st.ok()) return Finish(st);
       if (!up_.append(chunk_.data()))
         return Finish(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                                    "upload: larger than the server's limit of " + std::to_string(max_) + " bytes"));
-      return StartRead(&chunk_);
+      return StartRead(&bytes_);
     }
     try {
-      info_->set_size(up_.size());
-      info_->set_sha256(up_.commit());
+      v1::AssetInfo info;
+      info.set_size(up_.size());
+      info.set_sha256(up_.commit());
+      *info_ = toBytes(info);
       Finish(grpc::Status::OK);
     } catch (const std::exception& e) {
       Finish(grpc::Status(grpc::StatusCode::INTERNAL, e.what()));
@@ -53,7 +58,8 @@ class Uploader final : public grpc::ServerReadReactor<v1::AssetChunk> {
   void OnDone() override { delete this; }
 
  private:
-  v1::AssetInfo* info_;
+  grpc::ByteBuffer* info_;
+  grpc::ByteBuffer bytes_;
   v1::AssetChunk chunk_;
   AssetStore::Upload up_;
   uint64_t max_;
@@ -66,7 +72,7 @@ grpc::ServerUnaryReactor* finish(grpc::CallbackServerContext* ctx, grpc::Status 
 }
 
 // An upload refused before its first chunk (authentication).
-class RefusedUpload final : public grpc::ServerReadReactor<v1::AssetChunk> {
+class RefusedUpload final : public grpc::ServerReadReactor<grpc::ByteBuffer> {
  public:
   explicit RefusedUpload(grpc::Status st) { Finish(std::move(st)); }
   void OnDone() override { delete this; }
@@ -85,32 +91,36 @@ ClientService::ClientService(JobBook& book, const Admission& admission, Prepared
       control_(control),
       auth_(auth) {}
 
-grpc::ServerReadReactor<v1::AssetChunk>* ClientService::UploadAsset(grpc::CallbackServerContext* ctx, v1::AssetInfo* info) {
+grpc::ServerReadReactor<grpc::ByteBuffer>* ClientService::UploadAsset(grpc::CallbackServerContext* ctx, grpc::ByteBuffer* info) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "UploadAsset"); !st.ok()) return new RefusedUpload(st);
   return new Uploader(assets_, maxAssetBytes_, info);
 }
 
-grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
-                                                   v1::SubmitJobResponse* resp) {
+grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "SubmitJob"); !st.ok()) return finish(ctx, st);
+  auto req = std::make_shared<v1::SubmitJobRequest>();
+  if (grpc::Status st = parseRequest(*bytes, *req); !st.ok()) return finish(ctx, st);
+  v1::SubmitJobResponse resp;
   if (req->request_id().size() > 256)  // it is stored with the job and kept in memory
     return finish(ctx, grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                                     "request_id: " + std::to_string(req->request_id().size()) + " bytes long (limit 256)"));
   if (auto existing = book_.jobOfRequest(req->request_id())) {  // a retry: the same job, not a second one
-    resp->set_job_id(*existing);
-    resp->set_existing(true);
-    return finish(ctx, grpc::Status::OK);
+    resp.set_job_id(*existing);
+    resp.set_existing(true);
+    return finishWith(ctx, grpc::Status::OK, resp, out);
   }
   if (grpc::Status room = book_.roomInQueue(); !room.ok()) return finish(ctx, room);
   auto* reactor = ctx->DefaultReactor();
   // Building the problem loads meshes and textures: not on a gRPC thread.
-  control_.post([this, reactor, req, resp] {
+  control_.post([this, reactor, req, out] {
     grpc::Status st;
+    v1::SubmitJobResponse resp;
     try {
-      st = submit(*req, *resp);
+      st = submit(*req, resp);
     } catch (const std::exception& e) {  // the store's disk, not the job: say so, keep serving
       st = grpc::Status(grpc::StatusCode::INTERNAL, std::string("job store: ") + e.what());
     }
+    if (st.ok()) *out = toBytes(resp);
     reactor->Finish(st);
   });
   return reactor;
@@ -129,65 +139,90 @@ grpc::Status ClientService::submit(const v1::SubmitJobRequest& req, v1::SubmitJo
   return grpc::Status::OK;
 }
 
-grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ctx, const v1::PlanJobRequest* req, v1::JobPlan* resp) {
+grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "PlanJob"); !st.ok()) return finish(ctx, st);
+  auto req = std::make_shared<v1::PlanJobRequest>();
+  if (grpc::Status st = parseRequest(*bytes, *req); !st.ok()) return finish(ctx, st);
   auto* reactor = ctx->DefaultReactor();
   // Building the problem loads meshes and textures: not on a gRPC thread.
-  control_.post([this, reactor, req, resp] {
+  control_.post([this, reactor, req, out] {
     v1::JobSpec spec = req->spec();
+    v1::JobPlan plan;
     grpc::Status st;
     try {
-      st = admission_.admit(spec, resp);
+      st = admission_.admit(spec, &plan);
     } catch (const std::exception& e) {
       st = grpc::Status(grpc::StatusCode::INTERNAL, e.what());
     }
+    if (st.ok()) *out = toBytes(plan);
     reactor->Finish(st);
   });
   return reactor;
 }
 
-grpc::ServerUnaryReactor* ClientService::GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req, v1::JobStatus* resp) {
+grpc::ServerUnaryReactor* ClientService::GetJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "GetJob"); !st.ok()) return finish(ctx, st);
-  return finish(ctx, book_.status(req->job_id(), resp));
+  v1::GetJobRequest req;
+  if (grpc::Status st = parseRequest(*bytes, req); !st.ok()) return finish(ctx, st);
+  v1::JobStatus resp;
+  grpc::Status st = book_.status(req.job_id(), &resp);
+  return finishWith(ctx, st, resp, out);
 }
 
-grpc::ServerUnaryReactor* ClientService::ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*, v1::ListJobsResponse* resp) {
+grpc::ServerUnaryReactor* ClientService::ListJobs(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "ListJobs"); !st.ok()) return finish(ctx, st);
-  for (auto& s : book_.list()) *resp->add_jobs() = std::move(s);
-  return finish(ctx, grpc::Status::OK);
+  v1::ListJobsRequest req;
+  if (grpc::Status st = parseRequest(*bytes, req); !st.ok()) return finish(ctx, st);
+  v1::ListJobsResponse resp;
+  for (auto& s : book_.list()) *resp.add_jobs() = std::move(s);
+  return finishWith(ctx, grpc::Status::OK, resp, out);
 }
 
-grpc::ServerUnaryReactor* ClientService::CancelJob(grpc::CallbackServerContext* ctx, const v1::CancelJobRequest* req, v1::JobStatus* resp) {
+grpc::ServerUnaryReactor* ClientService::CancelJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "CancelJob"); !st.ok()) return finish(ctx, st);
+  v1::CancelJobRequest req;
+  if (grpc::Status st = parseRequest(*bytes, req); !st.ok()) return finish(ctx, st);
+  v1::JobStatus resp;
   bool wasQueued = false;
-  grpc::Status st = book_.cancel(req->job_id(), resp, &wasQueued);
-  if (wasQueued) prepared_.drop(req->job_id());
+  grpc::Status st = book_.cancel(req.job_id(), &resp, &wasQueued);
+  if (wasQueued) prepared_.drop(req.job_id());
   scheduler_.wake();  // a running job's runner sees the request now, not at its next poll
-  return finish(ctx, st);
+  return finishWith(ctx, st, resp, out);
 }
 
-grpc::ServerWriteReactor<v1::ProgressEvent>* ClientService::WatchJob(grpc::CallbackServerContext* ctx, const v1::WatchJobRequest* req) {
-  auto* w = new Watcher(book_, req->job_id());
+grpc::ServerWriteReactor<grpc::ByteBuffer>* ClientService::WatchJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes) {
+  v1::WatchJobRequest req;
+  grpc::Status parsed = parseRequest(*bytes, req);
+  auto* w = new Watcher(book_, req.job_id());
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "WatchJob"); !st.ok()) {
     w->close(st);
     return w;
   }
-  if (grpc::Status st = book_.watch(req->job_id(), req->from_sequence(), w); !st.ok()) w->close(st);
+  if (!parsed.ok()) {
+    w->close(parsed);
+    return w;
+  }
+  if (grpc::Status st = book_.watch(req.job_id(), req.from_sequence(), w); !st.ok()) w->close(st);
   return w;
 }
 
-grpc::ServerWriteReactor<v1::AssetChunk>* ClientService::FetchResult(grpc::CallbackServerContext* ctx, const v1::FetchResultRequest* req) {
-  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "FetchResult"); !st.ok()) return new FailedFileSender(st);
+grpc::ServerWriteReactor<grpc::ByteBuffer>* ClientService::FetchResult(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes) {
+  using Failed = FailedFileSenderOf<grpc::ByteBuffer>;
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "FetchResult"); !st.ok()) return new Failed(st);
+  v1::FetchResultRequest req;
+  if (grpc::Status st = parseRequest(*bytes, req); !st.ok()) return new Failed(st);
   std::filesystem::path path;
-  if (grpc::Status st = book_.resultPath(req->job_id(), req->name(), &path); !st.ok()) return new FailedFileSender(st);
-  return new FileSender(path);
+  if (grpc::Status st = book_.resultPath(req.job_id(), req.name(), &path); !st.ok()) return new Failed(st);
+  return new FileSenderOf<grpc::ByteBuffer>(path);
 }
 
-grpc::ServerUnaryReactor* ClientService::ListWorkers(grpc::CallbackServerContext* ctx, const v1::ListWorkersRequest*,
-                                                     v1::ListWorkersResponse* resp) {
+grpc::ServerUnaryReactor* ClientService::ListWorkers(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
   if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "ListWorkers"); !st.ok()) return finish(ctx, st);
-  for (auto& w : scheduler_.workers()) *resp->add_workers() = std::move(w);
-  return finish(ctx, grpc::Status::OK);
+  v1::ListWorkersRequest req;
+  if (grpc::Status st = parseRequest(*bytes, req); !st.ok()) return finish(ctx, st);
+  v1::ListWorkersResponse resp;
+  for (auto& w : scheduler_.workers()) *resp.add_workers() = std::move(w);
+  return finishWith(ctx, grpc::Status::OK, resp, out);
 }
 
 }  // namespace invr::server

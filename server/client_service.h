@@ -1,5 +1,7 @@
 // The client API (invr.v1.InvrService): gRPC callbacks only. Each call reads or updates the job
-// book, or posts its work to the control queue; nothing here renders or builds a scene.
+// book, or posts its work to the control queue; nothing here renders or builds a scene. Every
+// method takes its request as raw bytes and parses them itself (raw_messages.h), so a malformed
+// request gets INVALID_ARGUMENT, not gRPC's UNIMPLEMENTED.
 #pragma once
 
 #include "invr/v1/service.grpc.pb.h"
@@ -12,22 +14,28 @@
 
 namespace invr::server {
 
-class ClientService final : public invr::v1::InvrService::CallbackService {
+using RawClientApi = invr::v1::InvrService::WithRawCallbackMethod_UploadAsset<invr::v1::InvrService::WithRawCallbackMethod_SubmitJob<
+    invr::v1::InvrService::WithRawCallbackMethod_GetJob<invr::v1::InvrService::WithRawCallbackMethod_ListJobs<
+        invr::v1::InvrService::WithRawCallbackMethod_CancelJob<invr::v1::InvrService::WithRawCallbackMethod_WatchJob<
+            invr::v1::InvrService::WithRawCallbackMethod_FetchResult<invr::v1::InvrService::WithRawCallbackMethod_ListWorkers<
+                invr::v1::InvrService::WithRawCallbackMethod_PlanJob<invr::v1::InvrService::Service>>>>>>>>>;
+
+class ClientService final : public RawClientApi {
  public:
   ClientService(JobBook& book, const Admission& admission, PreparedProblem& prepared, Scheduler& scheduler, AssetStore& assets,
                 uint64_t maxAssetBytes, ControlQueue& control, const Authenticator& auth);
 
-  grpc::ServerReadReactor<invr::v1::AssetChunk>* UploadAsset(grpc::CallbackServerContext*, invr::v1::AssetInfo* info) override;
-  grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const invr::v1::SubmitJobRequest* req,
-                                      invr::v1::SubmitJobResponse* resp) override;
-  grpc::ServerUnaryReactor* PlanJob(grpc::CallbackServerContext* ctx, const invr::v1::PlanJobRequest* req, invr::v1::JobPlan* resp) override;
-  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const invr::v1::GetJobRequest* req, invr::v1::JobStatus* resp) override;
-  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const invr::v1::ListJobsRequest*, invr::v1::ListJobsResponse* resp) override;
-  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const invr::v1::CancelJobRequest* req, invr::v1::JobStatus* resp) override;
-  grpc::ServerWriteReactor<invr::v1::ProgressEvent>* WatchJob(grpc::CallbackServerContext*, const invr::v1::WatchJobRequest* req) override;
-  grpc::ServerWriteReactor<invr::v1::AssetChunk>* FetchResult(grpc::CallbackServerContext*, const invr::v1::FetchResultRequest* req) override;
-  grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx, const invr::v1::ListWorkersRequest*,
-                                        invr::v1::ListWorkersResponse* resp) override;
+  // Each request is the serialised message its proto names (UploadAsset: AssetChunk messages;
+  // WatchJob and FetchResult write ProgressEvent and AssetChunk messages).
+  grpc::ServerReadReactor<grpc::ByteBuffer>* UploadAsset(grpc::CallbackServerContext*, grpc::ByteBuffer* info) override;
+  grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerUnaryReactor* PlanJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* WatchJob(grpc::CallbackServerContext*, const grpc::ByteBuffer* req) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* FetchResult(grpc::CallbackServerContext*, const grpc::ByteBuffer* req) override;
+  grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
 
  private:
   grpc::Status submit(const invr::v1::SubmitJobRequest& req, invr::v1::SubmitJobResponse& resp);

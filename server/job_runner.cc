@@ -13,6 +13,7 @@
 #include "core/image/image.h"
 #include "core/optim/optimization_loop.h"
 #include "core/optim/results_io.h"
+#include "core/stopwatch.h"
 #include "proto/wire/sha256.h"
 
 namespace invr::server {
@@ -20,14 +21,6 @@ namespace invr::server {
 namespace v1 = invr::v1;
 
 namespace {
-
-std::string fmtDouble(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.9g", v);
-  return b;
-}
-
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // SHA-256 of the spec's deterministic serialization: how later tasks name the spec a worker holds.
 std::string specHash(const v1::JobSpec& spec) {
@@ -171,9 +164,9 @@ void JobRunner::runSteps(Context& c) {
   start.counter = counter;
   start.step = step;
   OptimizationLoop loop(p, std::move(start), p.burnIn, p.steps);
-  auto runStart = Clock::now();
+  const Stopwatch runClock;
   uint64_t stepsThisRun = 0;
-  Clock::time_point firstStepDone = runStart, lastStepDone = runStart;
+  Stopwatch sinceFirstStep, sinceLastStep;
   // The shards go to workers; the loop sums their results in shard order, as in process.
   double wall = 0, slowest = 0;
   auto evaluateOnWorkers = [&](const Evaluation& e, const std::vector<float>& at) {
@@ -190,9 +183,9 @@ void JobRunner::runSteps(Context& c) {
       t.set_render_only(e.renderOnly);
       tasks[s] = std::move(t);
     }
-    auto t0 = Clock::now();
+    const Stopwatch stepClock;
     auto results = scheduler_.run(id, tasks);
-    wall = secondsSince(t0);
+    wall = stepClock.seconds();
     slowest = 0;
     std::vector<std::optional<GradientResult>> out(results.size());
     for (size_t s = 0; s < results.size(); ++s) {
@@ -200,25 +193,10 @@ void JobRunner::runSteps(Context& c) {
       if (!r) continue;
       GradientResult g;
       g.gradient.assign(r->gradient().begin(), r->gradient().end());
-      g.stats.loss = r->loss();
-      g.stats.nonFiniteSamples = r->non_finite();
-      g.stats.secondsPrimal = r->seconds_primal();
-      g.stats.secondsDerivative = r->seconds_derivative();
-      g.stats.secondsReservoirUpdate = r->seconds_reservoir();
-      g.stats.secondsStage1 = r->seconds_stage1();
-      g.stats.biasTerm = r->bias_term();
-      g.stats.varianceTerm = r->variance_term();
-      g.stats.cost = r->cost();
-      g.stats.secondsVariance = r->seconds_variance();
-      g.stats.secondsBoundary = r->seconds_boundary();
-      g.stats.boundaryEdges = r->boundary_edges();
-      g.stats.edgeReservoirs = r->edge_reservoirs();
-      g.stats.edgeReservoirsPreserved = r->edge_reservoirs_preserved();
-      g.stats.reservoirs = r->reservoirs();
-      g.stats.meanM = r->mean_m();
-      g.stats.meanNeighbours = r->mean_neighbours();
-      slowest = std::max(slowest, r->seconds_primal() + r->seconds_derivative() + r->seconds_reservoir() + r->seconds_session() +
-                                      r->seconds_stage1() + r->seconds_variance() + r->seconds_boundary());
+      g.stats = r->stats();
+      const v1::GradientStats& st = r->stats();
+      slowest = std::max(slowest, st.seconds_primal() + st.seconds_derivative() + st.seconds_reservoir() + r->seconds_session() +
+                                      st.seconds_stage1() + st.seconds_variance() + st.seconds_boundary());
       out[s] = std::move(g);
     }
     return out;
@@ -237,13 +215,13 @@ void JobRunner::runSteps(Context& c) {
         book_.log(id, "burn-in " + std::to_string(k) + "/" + std::to_string(p.burnIn) + " (render-only steps that fill the reservoirs)");
       continue;
     }
-    auto u0 = Clock::now();
+    const Stopwatch updateClock;
     const LoopState& ls = loop.state();
     c.theta = ls.theta;
     ++stepsThisRun;
     // Rates from the steps after this run's first (which includes building sessions and targets).
-    if (stepsThisRun == 1) firstStepDone = Clock::now();
-    double seconds = secondsBefore + secondsSince(runStart);
+    if (stepsThisRun == 1) sinceFirstStep.restart();
+    double seconds = secondsBefore + runClock.seconds();
     c.ck.set_step(ls.step);
     c.ck.set_counter(ls.counter);
     c.ck.mutable_theta()->Assign(ls.theta.begin(), ls.theta.end());
@@ -252,41 +230,20 @@ void JobRunner::runSteps(Context& c) {
     c.ck.set_optimizer_step(ls.optimizer.step);
     c.ck.set_seconds(seconds);
     store_.saveCheckpoint(id, c.ck);  // before the progress event: the log never runs ahead of it
-    double perStep = stepsThisRun == 1 ? wall : secondsSince(firstStepDone) / double(stepsThisRun - 1);
-    const GradientStats& st = g->stats;
+    double perStep = stepsThisRun == 1 ? wall : sinceFirstStep.seconds() / double(stepsThisRun - 1);
     v1::StepProgress sp;
-    sp.set_render_seconds(st.secondsPrimal);
-    sp.set_derivative_seconds(st.secondsDerivative);
-    sp.set_reservoir_seconds(st.secondsReservoirUpdate);
-    sp.set_stage1_seconds(st.secondsStage1);
-    if (p.gradient.variance.enabled) {
-      sp.set_bias_term(st.biasTerm);
-      sp.set_variance_term(st.varianceTerm);
-      sp.set_cost(st.cost);
-      sp.set_variance_seconds(st.secondsVariance);
-    }
-    if (p.params.hasShapeParameters()) {
-      sp.set_boundary_seconds(st.secondsBoundary);
-      sp.set_boundary_edges(st.boundaryEdges);
-      sp.set_edge_reservoirs(st.edgeReservoirs);
-      sp.set_edge_reservoirs_preserved(st.edgeReservoirsPreserved);
-    }
-    sp.set_reservoirs(st.reservoirs);
-    sp.set_mean_m(st.meanM);
-    sp.set_mean_neighbours(st.meanNeighbours);
+    *sp.mutable_stats() = g->stats;
     sp.set_step(ls.step);
     sp.set_steps(uint64_t(p.steps));
-    sp.set_loss(st.loss);
+    sp.set_loss(g->stats.loss());
     sp.set_param_error(p.groundTruthKnown() ? parameterError(p, ls.theta) : -1.0);
     sp.set_seconds(seconds);
     sp.set_steps_per_second(1.0 / perStep);
     sp.set_eta_seconds(perStep * double(uint64_t(p.steps) - ls.step));
-    sp.set_non_finite(st.nonFiniteSamples);
     sp.set_transport_seconds(std::max(0.0, wall - slowest));
-    sp.set_update_seconds(secondsSince(u0));
+    sp.set_update_seconds(updateClock.seconds());
     book_.stepDone(id, sp, scheduler_.workerSeconds(id), scheduler_.workersOf(id));
-    if (onStep) onStep(secondsSince(lastStepDone));
-    lastStepDone = Clock::now();
+    if (onStep) onStep(sinceLastStep.lap());
     spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, ls.step, sp.loss(), sp.param_error(),
                  sp.steps_per_second());
   }
@@ -320,14 +277,21 @@ void JobRunner::writeResults(Context& c) {
   std::vector<std::string> files = writeParameters(dir, p.params, c.theta);
   {
     // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
-    std::ofstream out(dir / "convergence.csv");
-    out << kConvergenceCsvHeader << "\n";
-    std::map<uint64_t, std::string> rows;
+    ConvergenceCsv csv(dir / "convergence.csv");
+    std::map<uint64_t, v1::StepProgress> steps;
     for (const auto& e : store_.loadEvents(id))
-      if (e.has_step())
-        rows[e.step().step()] = gradientMethodName(p.gradient.method) + std::string(",") + std::to_string(e.step().step()) + "," +
-                                std::to_string(e.step().seconds()) + "," + fmtDouble(e.step().loss()) + "," + fmtDouble(e.step().param_error());
-    for (auto& [k, r] : rows) out << r << "\n";
+      if (e.has_step()) steps[e.step().step()] = e.step();
+    for (const auto& [k, sp] : steps) {
+      ConvergenceRow row;
+      row.method = gradientMethodName(p.gradient.method);
+      row.step = sp.step();
+      row.seconds = sp.seconds();
+      row.loss = sp.loss();
+      row.paramError = sp.param_error();
+      row.stats = sp.stats();
+      csv.add(std::move(row));
+    }
+    csv.write();
     files.push_back("convergence.csv");
   }
   // Charts are the client's: `invr fetch` and `invr run` draw convergence.png from this CSV.

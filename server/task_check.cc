@@ -1,5 +1,8 @@
 #include "server/task_check.h"
 
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/message.h>
+
 #include <cmath>
 
 namespace invr::server {
@@ -11,6 +14,40 @@ constexpr int kMaxChannels = 4;
 
 bool finiteNonNegative(double v) { return std::isfinite(v) && v >= 0.0; }
 
+namespace pb = google::protobuf;
+
+// Every number of a statistics message: timings, costs and sums of M are finite and >= 0 (the
+// loss and its terms may be anything: a non-finite loss is how divergence shows), maps hold few
+// entries with short names.
+std::string checkStats(const pb::Message& m, int depth = 0) {
+  const pb::Descriptor* d = m.GetDescriptor();
+  const pb::Reflection* r = m.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->is_map()) {
+      if (r->FieldSize(m, f) > 64) return "statistics '" + f->name() + "' has " + std::to_string(r->FieldSize(m, f)) + " entries (limit 64)";
+      for (int k = 0; k < r->FieldSize(m, f); ++k) {
+        const pb::Message& e = r->GetRepeatedMessage(m, f, k);
+        if (e.GetReflection()->GetString(e, f->message_type()->map_key()).size() > 64) return "a statistics name is longer than 64 bytes";
+        if (depth < 4) {
+          std::string bad = checkStats(e, depth + 1);
+          if (!bad.empty()) return bad;
+        }
+      }
+    } else if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE && !f->is_repeated()) {
+      if (depth < 4) {
+        std::string bad = checkStats(r->GetMessage(m, f), depth + 1);
+        if (!bad.empty()) return bad;
+      }
+    } else if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_DOUBLE && !f->is_repeated()) {
+      const std::string& n = f->name();
+      if (n == "loss" || n == "bias_term" || n == "variance_term") continue;
+      if (!finiteNonNegative(r->GetDouble(m, f))) return "statistic '" + n + "' is negative or not finite";
+    }
+  }
+  return "";
+}
+
 }  // namespace
 
 std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const ResultShape& shape) {
@@ -21,10 +58,8 @@ std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const
   if (!r.error().empty()) return "";  // a failed task: its error is reported, nothing else is read
   if (r.spec_unknown()) return "";    // the spec is sent again; nothing else is read
   if (r.input_error()) return "input_error set without an error text";
-  for (double s : {r.seconds_primal(), r.seconds_derivative(), r.seconds_reservoir(), r.seconds_session(), r.seconds_stage1(), r.seconds_variance(), r.seconds_boundary()})
-    if (!finiteNonNegative(s)) return "a timing is negative or not finite";
-  if (!std::isfinite(r.mean_m()) || !std::isfinite(r.mean_neighbours())) return "reservoir statistics are not finite";
-  if (!finiteNonNegative(r.cost())) return "the render cost is negative or not finite";
+  if (!finiteNonNegative(r.seconds_session())) return "a timing is negative or not finite";
+  if (std::string bad = checkStats(r.stats()); !bad.empty()) return bad;
   if (task.kind() == v1::Task::FINAL_RENDER) {
     if (r.gradient_size() != 0) return "a final render carries a gradient";
     const int expected = 2 * task.views_size();  // each view's render, then its target

@@ -1,22 +1,17 @@
 // Local worker processes for the embedded server of `invr run` and `invr bench service`.
 #pragma once
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "client/common/exit_codes.h"
+#include "client/common/process.h"
 #include "client/common/service_client.h"
 #include "server/server.h"
-
-extern char** environ;
 
 namespace invr::cli {
 
@@ -47,34 +42,15 @@ struct LocalWorkers {
     }
   }
   void spawnLogged(std::vector<std::string> args, const std::filesystem::path& logFile) {
-    const std::string exe = args[0];
-    {
-      std::vector<char*> argv;
-      for (auto& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      posix_spawn_file_actions_t fa;
-      posix_spawn_file_actions_init(&fa);
-      std::string log = logFile.string();
-      posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      posix_spawn_file_actions_adddup2(&fa, 1, 2);
-      // The child must see SIGINT/SIGTERM (this process blocks SIGINT for its own watcher thread).
-      posix_spawnattr_t attr;
-      posix_spawnattr_init(&attr);
-      sigset_t none;
-      sigemptyset(&none);
-      posix_spawnattr_setsigmask(&attr, &none);
-      posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK);
-      pid_t pid = 0;
-      int rc = posix_spawn(&pid, exe.c_str(), &fa, &attr, argv.data(), environ);
-      posix_spawn_file_actions_destroy(&fa);
-      posix_spawnattr_destroy(&attr);
-      if (rc != 0) throw ExitError(exit_code::kInternal, "cannot start " + exe + ": " + std::strerror(rc));
-      pids.push_back(pid);
+    try {
+      pids.push_back(spawnProcess(args, logFile, logFile));
+    } catch (const std::runtime_error& e) {
+      throw ExitError(exit_code::kInternal, e.what());
     }
   }
   void stop() {
     for (pid_t p : pids) kill(p, SIGTERM);
-    for (pid_t p : pids) waitpid(p, nullptr, 0);
+    for (pid_t p : pids) waitProcess(p);
     pids.clear();
   }
 };

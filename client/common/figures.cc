@@ -1,20 +1,15 @@
 #include "client/common/figures.h"
 
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
-#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "core/error.h"
 #include "client/common/figures_script.h"  // kFiguresScript, generated from client/common/figures.py
-
-extern char** environ;
+#include "client/common/process.h"
+#include "core/error.h"
 
 namespace invr {
 
@@ -31,23 +26,11 @@ void runFiguresScript(const std::vector<std::string>& scriptArgs) {
   if (access(python, X_OK) != 0) throw std::runtime_error("figures need /usr/bin/python3 with matplotlib (deploy/setup.sh installs them)");
   std::vector<std::string> args = {python, "-c", kFiguresScript};
   args.insert(args.end(), scriptArgs.begin(), scriptArgs.end());
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
   // python's complaints come back through a file, to be reported as the error.
   static std::atomic<int> serial{0};
   std::filesystem::path err = std::filesystem::temp_directory_path() /
                               ("invr-figure-" + std::to_string(getpid()) + "-" + std::to_string(serial++) + ".err");
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
-  int rc = posix_spawn(&pid, python, &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) throw std::runtime_error(std::string("cannot run /usr/bin/python3: ") + std::strerror(rc));
-  int status = 0;
-  waitpid(pid, &status, 0);
+  const int status = cli::waitProcess(cli::spawnProcess(args, "/dev/null", err));
   std::ifstream in(err);
   std::stringstream ss;
   ss << in.rdbuf();
@@ -55,7 +38,7 @@ void runFiguresScript(const std::vector<std::string>& scriptArgs) {
   std::filesystem::remove(err, ec);
   std::string msg = ss.str();
   while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+  if (status != 0) {
     if (msg.find("No module named 'matplotlib'") != std::string::npos)
       throw std::runtime_error("figures need python3-matplotlib (deploy/setup.sh installs it)");
     // The script's own messages are one line about the input; anything else is its last line.

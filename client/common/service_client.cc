@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "client/common/exit_codes.h"
+#include "core/diff/gradient_stats.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "proto/wire/wire.h"
@@ -227,11 +228,15 @@ std::string describeEvent(const v1::ProgressEvent& e) {
     std::snprintf(buf, sizeof buf, "step %llu/%llu  loss %.6g%s  %.1f s  %.2f steps/s  eta %.0f s", (unsigned long long)s.step(),
                   (unsigned long long)s.steps(), s.loss(), err.c_str(), s.seconds(), s.steps_per_second(), s.eta_seconds());
     std::string out = buf;
-    if (s.variance_term() != 0 || s.cost() != 0) {
-      std::snprintf(buf, sizeof buf, "  (bias %.6g + variance %.6g, cost %.3g rays/sample)", s.bias_term(), s.variance_term(), s.cost());
+    const v1::GradientStats& st = s.stats();
+    if (st.variance_term() != 0 || st.cost() != 0) {
+      std::snprintf(buf, sizeof buf, "  (bias %.6g + variance %.6g, cost %.3g rays/sample)", st.bias_term(), st.variance_term(), st.cost());
       out += buf;
     }
-    if (s.non_finite()) out += "  non-finite " + std::to_string(s.non_finite());
+    const double rays = double(st.rays().camera() + st.rays().shadow() + st.rays().bounce());
+    std::snprintf(buf, sizeof buf, "  %.3g M rays", rays / 1e6);
+    out += buf;
+    if (const uint64_t dropped = droppedSamples(st)) out += "  non-finite " + std::to_string(dropped);
     return out;
   }
   if (e.has_final()) {

@@ -14,13 +14,13 @@
 #include "core/job/zoo_jobs.h"
 #include "core/optim/equal_time.h"
 #include "core/error.h"
+#include "core/math/statistics.h"
+#include "core/stopwatch.h"
 
 namespace invr::cli {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 const GradientMethod kMethods[] = {GradientMethod::Pt, GradientMethod::Ris, GradientMethod::Restir};
 
@@ -70,9 +70,9 @@ double stepSeconds(Setup& s, GradientMethod m, int spp, int burnIn) {
   std::vector<double> t;
   for (int i = 0; i < 4; ++i) {
     r.step = uint64_t(burnIn + i);
-    auto t0 = Clock::now();
+    Stopwatch clock;
     engine.evaluate(r, session);
-    if (i > 0) t.push_back(since(t0));
+    if (i > 0) t.push_back(clock.seconds());
   }
   std::sort(t.begin(), t.end());
   return t[1];
@@ -158,17 +158,16 @@ BenchReport benchGradients(const GradientsArgs& a) {
       double groupErr = 0;
       for (int i = 0; i < perChain; ++i) {
         r.step = uint64_t(burn + i);
-        auto t0 = Clock::now();
+        Stopwatch clock;
         auto g = engine.evaluate(r, session).gradient;
-        secs += since(t0);
+        secs += clock.seconds();
         groupErr += relativeSquaredError(g, ref) / perChain;
       }
       groupMeans.push_back(groupErr);
     }
-    double mean = 0, var = 0;
-    for (double e : groupMeans) mean += e / double(groupMeans.size());
-    for (double e : groupMeans) var += (e - mean) * (e - mean) / double(std::max<size_t>(1, groupMeans.size() - 1));
-    return std::array<double, 3>{mean, std::sqrt(var / double(groupMeans.size())), secs / double(chains * perChain)};
+    MeanSe m;
+    for (double e : groupMeans) m.add(e);
+    return std::array<double, 3>{m.mean(), groupMeans.size() > 1 ? m.se() : 0.0, secs / double(chains * perChain)};
   };
   std::vector<double> relmse(3), relmseSe(3), seconds(3);
   for (int mi = 0; mi < 3; ++mi) {
@@ -286,10 +285,9 @@ BenchReport benchGradients(const GradientsArgs& a) {
       }
       groupMeans.push_back(groupErr);
     }
-    double mean = 0, var = 0;
-    for (double e : groupMeans) mean += e / double(groupMeans.size());
-    for (double e : groupMeans) var += (e - mean) * (e - mean) / double(std::max<size_t>(1, groupMeans.size() - 1));
-    const double se = std::sqrt(var / double(groupMeans.size()));
+    MeanSe m;
+    for (double e : groupMeans) m.add(e);
+    const double mean = m.mean(), se = groupMeans.size() > 1 ? m.se() : 0.0;
     rep.number("relmse_restir_changing_theta", mean, "+- " + BenchReport::fmt(se) + " (theta alternating every step)");
     const double r = relmse[1] / mean, rSe = r * std::hypot(relmseSe[1] / relmse[1], se / mean);
     rep.number("ratio_ris_over_restir_changing_theta", r, "+- " + BenchReport::fmt(rSe));
@@ -332,13 +330,13 @@ BenchReport benchOverhead(const OverheadArgs& a) {
   for (int i = 0; i < a.steps; ++i) {
     r.step = uint64_t(4 + i);
     for (size_t k = 0; k < v.size(); ++k) {
-      auto t0 = Clock::now();
-      GradientStats st = engines[k]->evaluate(r, v[k].session).stats;
-      v[k].seconds.push_back(since(t0));
-      v[k].split[0] += st.secondsPrimal / a.steps;
-      v[k].split[1] += st.secondsDerivative / a.steps;
-      v[k].split[2] += st.secondsReservoirUpdate / a.steps;
-      v[k].split[3] += double(st.rays.shadow) / a.steps;
+      Stopwatch clock;
+      const v1::GradientStats st = engines[k]->evaluate(r, v[k].session).stats;
+      v[k].seconds.push_back(clock.seconds());
+      v[k].split[0] += st.seconds_primal() / a.steps;
+      v[k].split[1] += st.seconds_derivative() / a.steps;
+      v[k].split[2] += st.seconds_reservoir() / a.steps;
+      v[k].split[3] += double(st.rays().shadow()) / a.steps;
     }
   }
   BenchReport rep("overhead");
@@ -389,9 +387,12 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     for (auto& p : *job.mutable_optimization()->mutable_parameters()) p.set_learning_rate(a.learningRate);
   Setup s{buildProblem(job), {}};
   s.targets = renderTargets(s.problem);
-  std::ofstream csv(a.csv);
-  if (!csv) throw InputError("--csv: cannot write '" + a.csv + "'");
-  csv << kEqualTimeCsvHeader << "\n";
+  ConvergenceCsv csv(a.csv);
+  try {
+    csv.write();
+  } catch (const InputError&) {
+    throw InputError("--csv: cannot write '" + a.csv + "'");
+  }
   ImageErrorMeter meter(s.problem, 1, 16);
   BenchReport rep("reconstruct");
   rep.text("scene", a.scene);
@@ -417,7 +418,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   } else {
     for (const auto& name : a.pixelSamplers) {
       GradientOptions o = s.problem.gradient;
-      o.pixels.sampler = pixelSamplerFromName(name);
+      o.pixels.sampler = &pixelSampler(name);
       if (a.pixelSamples > 0) o.pixels.samplesPerView = a.pixelSamples;
       variants.push_back({name, o});
     }
@@ -451,7 +452,8 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       budget.seconds = a.seconds;
       const std::string label = a.seeds > 1 ? v.name + "_seed" + std::to_string(k) : v.name;
       EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
-                                      [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, label, pt); });
+                                      [&](const EqualTimePoint& pt) { csv.add(convergenceRow(label, pt)); });
+      csv.write();
       finalErrors.push_back(run.history.back().parameterError);
       tailErrors.push_back(tailParameterError(run.history, a.seconds));  // where it settled
       if (!rotation.empty()) finalDegrees.push_back(degreesOff(run.theta));

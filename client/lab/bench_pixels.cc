@@ -12,6 +12,7 @@
 #include "client/lab/lab_commands.h"
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
+#include "core/stopwatch.h"
 
 namespace invr::cli {
 
@@ -33,11 +34,11 @@ std::string ratioWithSe(const SamplerRun& a, const SamplerRun& b) {
 }
 
 // `preset`: fixed maps per view (never refreshed) instead of the sampler's own stage 1.
-SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler sampler, int samples, int reps, double defensive,
+SamplerRun measure(Problem& p, const std::vector<Image>& targets, const PixelSampler& sampler, int samples, int reps, double defensive,
                    const std::map<int, PixelMap>* preset = nullptr) {
   GradientOptions o = p.gradient;
   if (defensive > 0) o.pixels.defensive = float(defensive);
-  o.pixels.sampler = sampler;
+  o.pixels.sampler = &sampler;
   o.pixels.samplesPerView = samples;
   if (preset) o.pixels.refreshEvery = 1 << 30;
   GradientEngine engine(*p.scene, p.params, targets, o);
@@ -45,14 +46,14 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler s
   if (preset) session.pixelMaps = *preset;
   std::vector<double> sum(p.params.size(), 0.0), sumSq(p.params.size(), 0.0), sum3(p.params.size(), 0.0), sum4(p.params.size(), 0.0);
   SamplerRun out;
-  auto t0 = std::chrono::steady_clock::now();
+  Stopwatch clock;
   for (int i = 0; i < reps; ++i) {
     GradientRequest r;
     r.views = viewsForStep(p, uint64_t(i));
     r.step = uint64_t(i);
     r.seed = p.seed;
     GradientResult g = engine.evaluate(r, session);
-    out.stage1 += g.stats.secondsStage1;
+    out.stage1 += g.stats.seconds_stage1();
     for (size_t k = 0; k < sum.size(); ++k) {
       sum[k] += g.gradient[k];
       double g2 = g.gradient[k] * g.gradient[k];
@@ -61,7 +62,7 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, PixelSampler s
       sum4[k] += g2 * g2;
     }
   }
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.seconds = clock.seconds();
   double varOfVariance = 0;
   for (size_t k = 0; k < sum.size(); ++k) {
     double m = sum[k] / reps, e2 = sumSq[k] / reps, e3 = sum3[k] / reps, e4 = sum4[k] / reps;
@@ -128,44 +129,50 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   rep.number("theta_fraction", a.thetaFraction, "(0: the truth, 1: the job's initial parameters)");
   rep.number("param_error_at_theta", parameterError(p, p.initial));
   rep.number("defensive", a.defensive > 0 ? a.defensive : double(p.gradient.pixels.defensive));
-  SamplerRun runs[3];
-  const PixelSampler kinds[3] = {PixelSampler::Uniform, PixelSampler::LossGrad, PixelSampler::Adaptive};
+  // Every registered mini-batch sampler, each against adaptive (Yan et al. 2025's).
+  std::map<std::string, SamplerRun> runs;
   BenchReport::Json variance = BenchReport::Json::object(), varianceSe = BenchReport::Json::object();
-  for (int i = 0; i < 3; ++i) {
-    runs[i] = measure(p, targets, kinds[i], n, a.reps, a.defensive);
-    std::cerr << pixelSamplerName(kinds[i]) << ": variance " << runs[i].variance << ", " << runs[i].seconds << " s\n";
-    variance[pixelSamplerName(kinds[i])] = runs[i].variance;
-    varianceSe[pixelSamplerName(kinds[i])] = runs[i].varianceSe;
+  for (const PixelSampler* k : pixelSamplers()) {
+    if (!k->miniBatch()) continue;
+    SamplerRun& run = runs[k->name()] = measure(p, targets, *k, n, a.reps, a.defensive);
+    std::cerr << k->name() << ": variance " << run.variance << ", " << run.seconds << " s\n";
+    variance[k->name()] = run.variance;
+    varianceSe[k->name()] = run.varianceSe;
   }
   rep.value("variance", variance, BenchReport::line(variance));
   rep.value("variance_se", varianceSe, BenchReport::line(varianceSe) + " (standard errors)");
-  rep.number("ratio_loss_grad_over_adaptive", runs[1].variance / runs[2].variance, "= " + ratioWithSe(runs[1], runs[2]) + " (target >= 3)");
-  rep.number("ratio_uniform_over_adaptive", runs[0].variance / runs[2].variance, "= " + ratioWithSe(runs[0], runs[2]));
-  rep.number("stage1_overhead_fraction", runs[2].stage1 / runs[2].seconds, "(target <= 0.10)");
+  const SamplerRun& adaptive = runs.at("adaptive");
+  for (const PixelSampler* k : pixelSamplers()) {
+    if (!k->miniBatch() || std::string(k->name()) == "adaptive") continue;
+    const SamplerRun& run = runs.at(k->name());
+    rep.number(std::string("ratio_") + k->name() + "_over_adaptive", run.variance / adaptive.variance,
+               "= " + ratioWithSe(run, adaptive) + (std::string(k->name()) == "loss_grad" ? " (target >= 3)" : ""));
+  }
+  rep.number("stage1_overhead_fraction", adaptive.stage1 / adaptive.seconds, "(target <= 0.10)");
   if (a.referenceSamples > 0) {
     std::cerr << "reference maps (" << a.referenceSamples << " stage-1 passes per view, every pixel)...\n";
     auto refAdaptive = referenceMaps(p, targets, true, a.referenceSamples, a.defensive);
     auto refLossGrad = referenceMaps(p, targets, false, a.referenceSamples, a.defensive);
-    SamplerRun ra = measure(p, targets, PixelSampler::Adaptive, n, a.reps, a.defensive, &refAdaptive);
-    SamplerRun rl = measure(p, targets, PixelSampler::LossGrad, n, a.reps, a.defensive, &refLossGrad);
+    SamplerRun ra = measure(p, targets, pixelSampler("adaptive"), n, a.reps, a.defensive, &refAdaptive);
+    SamplerRun rl = measure(p, targets, pixelSampler("loss_grad"), n, a.reps, a.defensive, &refLossGrad);
     rep.value("variance_reference_maps", {{"loss_grad", rl.variance}, {"adaptive", ra.variance}},
               "loss_grad " + BenchReport::fmt(rl.variance) + ", adaptive " + BenchReport::fmt(ra.variance) + " (maps from many stage-1 passes)");
     rep.number("reference_ratio_loss_grad_over_adaptive", rl.variance / ra.variance,
                "= " + ratioWithSe(rl, ra) + " (with maps from many stage-1 passes)");
     rep.value("variance_reference_maps_se", {{"loss_grad", rl.varianceSe}, {"adaptive", ra.varianceSe}},
               "loss_grad " + BenchReport::fmt(rl.varianceSe) + ", adaptive " + BenchReport::fmt(ra.varianceSe) + " (standard errors)");
-    rep.number("reference_ratio_uniform_over_adaptive", runs[0].variance / ra.variance, "= " + ratioWithSe(runs[0], ra));
+    rep.number("reference_ratio_uniform_over_adaptive", runs.at("uniform").variance / ra.variance, "= " + ratioWithSe(runs.at("uniform"), ra));
     // What a perfect stage 1 would give the adaptive sampler against loss_grad as it runs: the
     // most the ratio above can reach by improving adaptive's maps alone.
-    rep.number("ratio_loss_grad_over_reference_adaptive", runs[1].variance / ra.variance,
-               "= " + ratioWithSe(runs[1], ra) + " (loss_grad with its own stage 1, adaptive with reference maps)");
+    rep.number("ratio_loss_grad_over_reference_adaptive", runs.at("loss_grad").variance / ra.variance,
+               "= " + ratioWithSe(runs.at("loss_grad"), ra) + " (loss_grad with its own stage 1, adaptive with reference maps)");
   }
   return rep;
 }
 
 void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   auto a = std::make_shared<PixelBenchArgs>();
-  auto* c = bench.add_subcommand("pixel-variance", "Gradient variance per pixel sampler at equal path budget (uniform, loss_grad, adaptive)");
+  auto* c = bench.add_subcommand("pixel-variance", "Gradient variance of every mini-batch pixel sampler at equal path budget, against adaptive");
   c->add_option("--scene", a->scene, "zoo scene (its built-in job)")->capture_default_str();
   c->add_option("--reps", a->reps, "gradient evaluations per sampler")->capture_default_str()->check(CLI::Range(2, 1000000));
   c->add_option("--samples", a->samples, "pixel samples per view (default: a fifth of the pixels)");

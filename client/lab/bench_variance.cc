@@ -22,6 +22,8 @@
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
 #include "core/error.h"
+#include "core/math/statistics.h"
+#include "core/stopwatch.h"
 #include "core/lights/light_selection.h"
 #include "core/math/rng.h"
 #include "core/optim/local_run.h"
@@ -29,16 +31,6 @@
 namespace invr::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-struct MeanSe {
-  double n = 0, sum = 0, sumSq = 0;
-  void add(double x) { n += 1; sum += x; sumSq += x * x; }
-  double mean() const { return sum / n; }
-  double se() const { return n > 1 ? std::sqrt(std::max(0.0, (sumSq / n - mean() * mean())) / (n - 1)) : INFINITY; }
-};
 
 // A pass over every pixel (or a batch) with the job's PT estimator at the scene's current state.
 PassOutput tracePass(const Problem& p, int view, uint64_t stream, uint64_t step, int spp, const PixelBatch* batch = nullptr,
@@ -116,7 +108,7 @@ double overheadRatio(Problem& p, const std::vector<Image>& targets, int steps) {
     r.seed = p.seed;
     GradientResult g = engine.evaluate(r, session);
     if (i == 0) continue;  // warm-up
-    ratios.push_back((g.stats.secondsVariance / p.gradient.variance.spp) / (g.stats.secondsDerivative / p.gradient.sppGradient));
+    ratios.push_back((g.stats.seconds_variance() / p.gradient.variance.spp) / (g.stats.seconds_derivative() / p.gradient.sppGradient));
   }
   std::sort(ratios.begin(), ratios.end());
   return ratios.empty() ? NAN : ratios[ratios.size() / 2];
@@ -134,7 +126,7 @@ BenchReport benchRings(const VarianceBenchArgs& a) {
   // Reference: central differences of V with common random numbers, at h and h/2.
   const double h = a.fdStep;
   MeanSe fd, fdHalf, richardson;
-  auto t0 = Clock::now();
+  Stopwatch t0;
   for (int r = 0; r < a.fdReps; ++r) {
     double v[4];
     const double at[4] = {theta0 + h, theta0 - h, theta0 + h / 2, theta0 - h / 2};
@@ -154,7 +146,7 @@ BenchReport benchRings(const VarianceBenchArgs& a) {
     richardson.add((4 * half - full) / 3);
   }
   p.params.write(p.initial, *p.scene);
-  rep.number("reference_seconds", since(t0), "s");
+  rep.number("reference_seconds", t0.seconds(), "s");
   rep.value("fd_steps", {{"h", h}, {"mean_h", fd.mean()}, {"se_h", fd.se()}, {"mean_half_h", fdHalf.mean()}, {"se_half_h", fdHalf.se()}},
             "h = " + BenchReport::fmt(h) + ": " + BenchReport::fmt(fd.mean()) + " +- " + BenchReport::fmt(fd.se()) + ", h/2: " +
                 BenchReport::fmt(fdHalf.mean()) + " +- " + BenchReport::fmt(fdHalf.se()) + " (" + std::to_string(a.fdReps) + " x " +
@@ -165,15 +157,15 @@ BenchReport benchRings(const VarianceBenchArgs& a) {
 
   // Equal time: each estimator gets `seconds`.
   auto run = [&](bool detached, MeanSe& m, double& sqErr, double& seconds) {
-    auto t = Clock::now();
+    Stopwatch t;
     int i = 0;
-    while (since(t) < a.seconds || i < 4) {
+    while (t.seconds() < a.seconds || i < 4) {
       double g = varianceGradient(p, a.seed + 1, uint64_t(i), detached, p.gradient)[0];
       m.add(g);
       sqErr += (g - ref.mean()) * (g - ref.mean());
       ++i;
     }
-    seconds = since(t);
+    seconds = t.seconds();
   };
   MeanSe unb, det;
   double sqU = 0, sqD = 0, secU = 0, secD = 0;
@@ -181,14 +173,14 @@ BenchReport benchRings(const VarianceBenchArgs& a) {
   run(true, det, sqD, secD);
   const double ref2 = ref.mean() * ref.mean();
   auto biasSe = [&](const MeanSe& m) { return (m.mean() - ref.mean()) / std::hypot(m.se(), ref.se()); };
-  rep.value("unbiased", {{"mean", unb.mean()}, {"se", unb.se()}, {"evaluations", unb.n}, {"seconds", secU}},
-            BenchReport::fmt(unb.mean()) + " +- " + BenchReport::fmt(unb.se()) + " (" + BenchReport::fmt(unb.n) + " evaluations)");
-  rep.value("detached", {{"mean", det.mean()}, {"se", det.se()}, {"evaluations", det.n}, {"seconds", secD}},
-            BenchReport::fmt(det.mean()) + " +- " + BenchReport::fmt(det.se()) + " (" + BenchReport::fmt(det.n) + " evaluations)");
+  rep.value("unbiased", {{"mean", unb.mean()}, {"se", unb.se()}, {"evaluations", double(unb.count())}, {"seconds", secU}},
+            BenchReport::fmt(unb.mean()) + " +- " + BenchReport::fmt(unb.se()) + " (" + BenchReport::fmt(double(unb.count())) + " evaluations)");
+  rep.value("detached", {{"mean", det.mean()}, {"se", det.se()}, {"evaluations", double(det.count())}, {"seconds", secD}},
+            BenchReport::fmt(det.mean()) + " +- " + BenchReport::fmt(det.se()) + " (" + BenchReport::fmt(double(det.count())) + " evaluations)");
   rep.number("unbiased_bias_se", biasSe(unb), "SE from the reference (target: within 2)");
   rep.number("detached_bias_se", biasSe(det), "SE from the reference (target: beyond 6)");
-  rep.number("relmse_unbiased", sqU / unb.n / ref2, "per evaluation, equal time");
-  rep.number("relmse_detached", sqD / det.n / ref2, "per evaluation, equal time");
+  rep.number("relmse_unbiased", sqU / double(unb.count()) / ref2, "per evaluation, equal time");
+  rep.number("relmse_detached", sqD / double(det.count()) / ref2, "per evaluation, equal time");
   rep.number("overhead_ratio", overheadRatio(p, targets, a.overheadSteps), "variance pass / derivative pass, per sample (target <= 1.5)");
 
   // K sweep: the recovered roughness against K (Fig. 6).
@@ -225,9 +217,9 @@ LocalRunResult optimiseZooJob(const std::string& name, int steps, Problem& p, Be
   v1::JobSpec job = zooJob(name);
   if (steps > 0) job.mutable_optimization()->set_steps(steps);
   p = buildProblem(job);
-  auto t0 = Clock::now();
+  Stopwatch t0;
   LocalRunResult res = runLocally(p);
-  rep.number("optimisation_seconds", since(t0), "s (" + std::to_string(p.steps) + " steps)");
+  rep.number("optimisation_seconds", t0.seconds(), "s (" + std::to_string(p.steps) + " steps)");
   return res;
 }
 
@@ -269,7 +261,7 @@ BenchReport benchSpot(const VarianceBenchArgs& a) {
   MeanSe ratio, pErr;
   BenchReport::Json cells = BenchReport::Json::array();
   int tried = 0;
-  while (int(ratio.n) < a.oracleCells && tried++ < 50 * a.oracleCells) {
+  while (int(ratio.count()) < a.oracleCells && tried++ < 50 * a.oracleCells) {
     const int cx = int(pick.nextBits() % uint64_t(map.width)), cy = int(pick.nextBits() % uint64_t(map.height));
     PixelBatch batch;
     batch.weight.assign(size_t(s.width) * size_t(s.height), 0.f);
@@ -298,7 +290,7 @@ BenchReport benchSpot(const VarianceBenchArgs& a) {
   }
   p.scene->sampling = optimised;
   p.scene->updateLightSelection();
-  rep.value("oracle_cells", cells, std::to_string(int(ratio.n)) + " cells of " + std::to_string(a.oracleSpp) + " spp per pixel, p on a 1/50 grid");
+  rep.value("oracle_cells", cells, std::to_string(int(ratio.count())) + " cells of " + std::to_string(a.oracleSpp) + " spp per pixel, p on a 1/50 grid");
   rep.number("oracle_variance_ratio", ratio.mean(), "+- " + BenchReport::fmt(ratio.se()) + " mean over cells of V(map) / V(oracle p) (target <= 1.1)");
   rep.number("oracle_p_abs_error", pErr.mean(), "mean |p_map - p_oracle|");
   rep.number("overhead_ratio", overheadRatio(p, res.targets, a.overheadSteps), "variance pass / derivative pass, per sample (target <= 1.5)");
@@ -318,9 +310,9 @@ BenchReport benchRoulette(const VarianceBenchArgs& a) {
   };
   const int spp = a.measureSpp;
   auto measure = [&] {
-    auto t = Clock::now();
+    Stopwatch t;
     PassOutput pr = tracePass(p, 0, streamSeed(a.seed, kVarianceMapStream), 0, spp, nullptr, true);
-    return Cost{double(pr.rays.total()) / double(pr.rays.camera), besselVariance(pr, spp, nullptr), since(t)};
+    return Cost{double(pr.rays.total()) / double(pr.rays.camera), besselVariance(pr, spp, nullptr), t.seconds()};
   };
   const std::vector<float> optimised = p.scene->sampling.survival;
   Cost opt = measure();

@@ -28,6 +28,7 @@
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/optim/equal_time.h"
+#include "core/stopwatch.h"
 #include "client/common/figures.h"
 
 namespace invr::cli {
@@ -35,14 +36,13 @@ namespace invr::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 struct EvalMethod {
   GradientMethod light;
-  PixelSampler pixels;
+  const PixelSampler* pixels;
   std::string name() const {
     std::string n = gradientMethodName(light);
-    if (pixels != PixelSampler::All) n += std::string("+") + pixelSamplerName(pixels);
+    if (pixels->miniBatch()) n += std::string("+") + pixels->name();
     return n;
   }
 };
@@ -67,8 +67,23 @@ struct Suite {
 };
 
 constexpr GradientMethod kPt = GradientMethod::Pt, kRis = GradientMethod::Ris, kRestir = GradientMethod::Restir;
-constexpr PixelSampler kAll = PixelSampler::All, kUniform = PixelSampler::Uniform, kLossGrad = PixelSampler::LossGrad,
-                       kAdaptive = PixelSampler::Adaptive;
+// Light sampling `light` on every pixel, each as a run of its own.
+std::vector<EvalMethod> everyPixel(std::initializer_list<GradientMethod> lights) {
+  std::vector<EvalMethod> out;
+  for (GradientMethod l : lights) out.push_back({l, &pixelSampler("all")});
+  return out;
+}
+// `light` with every registered mini-batch pixel sampler (and, with `all`, on every pixel too).
+std::vector<EvalMethod> everySampler(GradientMethod light, bool all) {
+  std::vector<EvalMethod> out;
+  for (const PixelSampler* k : pixelSamplers())
+    if (k->miniBatch() || all) out.push_back({light, k});
+  return out;
+}
+std::vector<EvalMethod> join(std::vector<EvalMethod> a, const std::vector<EvalMethod>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
 
 // Which comparisons are meaningful where: light sampling matters for direct illumination with
 // many lights or hard visibility (cornell, oxalis, ajar, backlit, and the shape jobs tree and
@@ -78,9 +93,9 @@ constexpr PixelSampler kAll = PixelSampler::All, kUniform = PixelSampler::Unifor
 Suite makeSuite(bool quick) {
   Suite s;
   if (quick) {
-    s.scenes = {{"cornell", 4, {{kPt, kAll}, {kRestir, kAll}}},
-                {"ajar", 8, {{kPt, kAll}, {kRestir, kAll}}},
-                {"mirror", 5, {{kPt, kUniform}, {kPt, kAdaptive}}}};
+    s.scenes = {{"cornell", 4, everyPixel({kPt, kRestir})},
+                {"ajar", 8, everyPixel({kPt, kRestir})},
+                {"mirror", 5, everySampler(kPt, false)}};
     s.targetSpp = 32;
     s.imageErrorSpp = 4;
     s.imageErrorViews = 1;
@@ -96,15 +111,15 @@ Suite makeSuite(bool quick) {
     s.pixelVariance.targetSpp = 16;
     s.variance = quickVarianceBenchArgs();
   } else {
-    s.scenes = {{"cornell", 20, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}},
-                {"oxalis", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}, {kRestir, kUniform}, {kRestir, kAdaptive}}},
-                {"ajar", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}},
-                {"mirror", 40, {{kPt, kAll}, {kPt, kUniform}, {kPt, kLossGrad}, {kPt, kAdaptive}}},
-                {"backlit", 90, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}, {kRestir, kUniform}, {kRestir, kAdaptive}}},
+    s.scenes = {{"cornell", 20, everyPixel({kPt, kRis, kRestir})},
+                {"oxalis", 60, join(everyPixel({kPt, kRis, kRestir}), everySampler(kRestir, false))},
+                {"ajar", 60, everyPixel({kPt, kRis, kRestir})},
+                {"mirror", 40, everySampler(kPt, true)},
+                {"backlit", 90, join(everyPixel({kPt, kRis, kRestir}), everySampler(kRestir, false))},
                 // Shape parameters (Wang et al. 2023, §5-7): the tree's rotation from its shadow
                 // under area lights, the knot's translation under spot and point lights.
-                {"tree", 60, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}},
-                {"knot", 30, {{kPt, kAll}, {kRis, kAll}, {kRestir, kAll}}}};
+                {"tree", 60, everyPixel({kPt, kRis, kRestir})},
+                {"knot", 30, everyPixel({kPt, kRis, kRestir})}};
     s.targetSpp = 256;
     s.imageErrorSpp = 32;
     s.imageErrorViews = 2;
@@ -326,9 +341,12 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
   ImageErrorMeter meter(p, suite.imageErrorViews, suite.imageErrorSpp);
   fs::path dir = out / es.scene;
   fs::create_directories(dir);
-  std::ofstream csv(dir / "convergence.csv");
-  if (!csv) throw InputError("--out: cannot write '" + (dir / "convergence.csv").string() + "'");
-  csv << kEqualTimeCsvHeader << "\n";
+  ConvergenceCsv csv(dir / "convergence.csv");
+  try {
+    csv.write();
+  } catch (const InputError&) {
+    throw InputError("--out: cannot write '" + (dir / "convergence.csv").string() + "'");
+  }
   EqualTimeOptions budget;
   budget.seconds = r.seconds;
   budget.imageErrorCheckpoints = suite.checkpoints;
@@ -339,7 +357,8 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
     MethodResult mr;
     mr.name = m.name();
     mr.method = m;
-    mr.run = runEqualTime(p, targets, o, budget, &meter, [&](const EqualTimePoint& pt) { writeEqualTimeCsvRow(csv, mr.name, pt); });
+    mr.run = runEqualTime(p, targets, o, budget, &meter, [&](const EqualTimePoint& pt) { csv.add(convergenceRow(mr.name, pt)); });
+    csv.write();
     meter.measure(mr.run.theta, &mr.renders);
     const EqualTimePoint& last = mr.run.history.back();
     std::cerr << "[" << es.scene << "] " << mr.name << ": " << last.step << " steps in " << fmt(last.seconds) << " s, parameter error "
@@ -348,7 +367,6 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
               << (mr.run.failure.empty() ? "" : "; stopped: " + mr.run.failure) << "\n";
     r.methods.push_back(std::move(mr));
   }
-  csv.close();
   r.initialParamError = r.methods.front().run.history.front().parameterError;
   r.initialImageError = r.methods.front().run.history.front().imageError;
   std::string title = es.scene + " (" + fmt(r.seconds) + " s per method)";
@@ -369,9 +387,10 @@ SceneResult runScene(const EvalScene& es, const Suite& suite, double budgetScale
 // The baseline a method is compared with: the scene's first method, and for a pixel sampler
 // also the uniform sampler with the same light sampling.
 const MethodResult* uniformPeer(const SceneResult& r, const MethodResult& m) {
-  if (m.method.pixels == kAll || m.method.pixels == kUniform) return nullptr;
+  const PixelSampler* uniform = &pixelSampler("uniform");
+  if (!m.method.pixels->miniBatch() || m.method.pixels == uniform) return nullptr;
   for (const auto& o : r.methods)
-    if (o.method.light == m.method.light && o.method.pixels == kUniform) return &o;
+    if (o.method.light == m.method.light && o.method.pixels == uniform) return &o;
   return nullptr;
 }
 
@@ -392,7 +411,7 @@ Json sceneJson(const SceneResult& r) {
     const MethodResult& m = r.methods[i];
     const EqualTimePoint& last = m.run.history.back();
     Json j = {{"light_sampling", gradientMethodName(m.method.light)},
-              {"pixel_sampling", pixelSamplerName(m.method.pixels)},
+              {"pixel_sampling", m.method.pixels->name()},
               {"steps", last.step},
               {"seconds", last.seconds},
               {"param_error", last.parameterError},
@@ -490,7 +509,7 @@ void runEval(const EvalArgs& a) {
   fs::path out(a.out);
   fs::create_directories(out);
   if (!fs::is_directory(out)) throw InputError("--out: '" + a.out + "' is not a folder");
-  auto t0 = Clock::now();
+  Stopwatch clock;
   double budget = 0;
   size_t runs = 0;
   for (const auto& s : suite.scenes) budget += s.seconds * a.budgetScale * double(s.methods.size()), runs += s.methods.size();
@@ -515,7 +534,7 @@ void runEval(const EvalArgs& a) {
     std::cerr << "[tables] variance-aware rendering on rings, spot and roulette...\n";
     for (BenchReport& r : benchVariance(suite.variance)) tables.push_back(std::move(r));
   }
-  double total = std::chrono::duration<double>(Clock::now() - t0).count();
+  double total = clock.seconds();
   Machine m = describeMachine();
   std::string date = utcNow();
   // summary.json

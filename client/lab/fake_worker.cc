@@ -91,9 +91,9 @@ int runFakeWorker(const FakeWorkerArgs& a) {
       }
     } else {
       r->mutable_gradient()->Resize(t.theta_size(), 0.f);
-      r->set_loss(1.0);
+      r->mutable_stats()->set_loss(1.0);
     }
-    r->set_seconds_primal(a.seconds);
+    r->mutable_stats()->set_seconds_primal(a.seconds);
     if (t.kind() == v1::Task::GRADIENT && !t.render_only()) resultBytes += out.ByteSizeLong();
     write(out);
   }

@@ -56,4 +56,20 @@ std::vector<float> adaptiveMap(const Stage1& s, int levels) {
   return cells;
 }
 
+namespace {
+
+class AdaptivePixels final : public PixelSampler {
+ public:
+  const char* name() const override { return "adaptive"; }
+  bool usesStage1() const override { return true; }
+  std::vector<float> cellValues(const Stage1& s, const PixelSamplingOptions& o) const override { return adaptiveMap(s, o.levels); }
+  std::string describe(const PixelSamplingOptions& o) const override {
+    return "p_j ~ sqrt(E[(dL/dI_j)^2] sum_k E[(dI_j/dtheta_k)^2]) over " + std::to_string(o.levels) + " levels (Yan et al. 2025, Eq. 12, 16, 18)";
+  }
+};
+
+const RegisterPixelSampler kRegistered(30, std::make_unique<AdaptivePixels>());
+
+}  // namespace
+
 }  // namespace invr

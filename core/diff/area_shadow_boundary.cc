@@ -2,13 +2,15 @@
 
 #include <algorithm>
 
+#include "core/diff/gradient_options.h"
 #include "core/diff/shadow_border.h"
 #include "core/math/sampling.h"
 
 namespace invr {
 
-AreaShadowBoundary::AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
-    : scene_(scene), params_(params), topology_(topology) {}
+AreaShadowBoundary::AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
+                                       int lightPoints)
+    : lightPoints_(lightPoints), scene_(scene), params_(params), topology_(topology) {}
 
 bool AreaShadowBoundary::applies(const Scene& scene) {
   for (const Light& l : scene.lights)
@@ -16,8 +18,9 @@ bool AreaShadowBoundary::applies(const Scene& scene) {
   return false;
 }
 
-BoundaryPassStats AreaShadowBoundary::run(int view, const Image& adjoint, int samples, int lightPoints, uint64_t stream, uint64_t step,
-                                          GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel) const {
+BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
+  const int view = bv.view, samples = bv.samples, lightPoints = lightPoints_;
+  const uint64_t stream = bv.stream, step = bv.step;
   const Camera& cam = scene_.cameras[size_t(view)];
   std::vector<float> power(scene_.lights.size());
   for (size_t i = 0; i < power.size(); ++i) power[i] = emittedPower(scene_.lights[i]);
@@ -40,11 +43,35 @@ BoundaryPassStats AreaShadowBoundary::run(int view, const Image& adjoint, int sa
     sources.push_back({ShadowSource::at(y.p), 1.0 / (points.back().pdf * double(lightPoints)), l.mesh});
   }
   return sampleShadowBorders(
-      scene_, params_, topology_, view, adjoint, samples, sources,
+      scene_, params_, topology_, view, bv.adjoint, samples, sources,
       [&](uint32_t j, float fx, float fy, RayStats& rays) {
         return pointSourceRadiance(scene_, cam, fx, fy, scene_.lights[points[j].light], points[j], rays);
       },
-      stream, step, scratch, gradient, cancel);
+      stream, step, bv.scratch, bv.gradient, bv.cancel);
 }
+
+namespace {
+
+const RegisterBoundaryTerm kAreaLightPoints({
+    .name = "area_shadows_light_points",
+    .order = 31,
+    .stream = kAreaShadowBoundaryStream,
+    .applies =
+        [](const Scene& scene, const GradientOptions& o) {
+          return o.boundary.secondary && o.boundary.areaSampling == BoundaryOptions::AreaSampling::LightPoints && AreaShadowBoundary::applies(scene);
+        },
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
+      return std::make_unique<AreaShadowBoundary>(s.scene, s.params, s.topology, s.options.boundary.lightPoints);
+    },
+    .describe =
+        [](const BoundaryPlanInput& in) {
+          return "boundary, secondary, area lights (Eq. 21-26): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
+                 " samples per view and step over the silhouette edges of " + std::to_string(in.options.boundary.lightPoints) +
+                 " light points per pass, jump evaluated directly";
+        },
+    .memoryBytes = {},
+});
+
+}  // namespace
 
 }  // namespace invr

@@ -14,24 +14,24 @@
 #pragma once
 
 #include "core/diff/boundary_sampling.h"
-#include "core/geometry/edge_topology.h"
+#include "core/diff/boundary_term.h"
 
 namespace invr {
 
 // Area-light shadow borders (light points first, or edge first: edge_reservoir_boundary.h).
 inline constexpr StreamId kAreaShadowBoundaryStream{14};
 
-class AreaShadowBoundary {
+class AreaShadowBoundary final : public BoundaryTerm {
  public:
-  AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
+  AreaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, int lightPoints);
 
   // Whether the scene has an area light that emits (else the estimator has nothing to do).
   static bool applies(const Scene& scene);
 
-  BoundaryPassStats run(int view, const Image& adjoint, int samples, int lightPoints, uint64_t stream, uint64_t step,
-                        GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel = nullptr) const;
+  BoundaryPassStats run(const BoundaryView& view) override;
 
  private:
+  int lightPoints_;
   const Scene& scene_;
   const ParameterRegistry& params_;
   const std::vector<EdgeTopology>& topology_;

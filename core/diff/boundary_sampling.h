@@ -7,17 +7,12 @@
 #include <functional>
 #include <vector>
 
+#include "core/diff/boundary_term.h"
 #include "core/diff/interior_estimator.h"
 #include "core/diff/pass_driver.h"
 
 namespace invr {
 
-struct BoundaryPassStats {
-  size_t candidateEdges = 0;  // edges a sample may pick
-  double filmLength = 0;      // primary: their total clipped length in pixels
-  uint64_t samples = 0, dropped = 0;  // dropped: non-finite
-  RayStats rays;
-};
 
 struct FilmCrossing {
   int px = 0, py = 0;  // the pixel of the crossing point

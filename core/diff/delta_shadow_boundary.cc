@@ -1,5 +1,6 @@
 #include "core/diff/delta_shadow_boundary.h"
 
+#include "core/diff/gradient_options.h"
 #include "core/diff/shadow_border.h"
 
 namespace invr {
@@ -13,10 +14,8 @@ bool DeltaShadowBoundary::applies(const Scene& scene) {
   return false;
 }
 
-BoundaryPassStats DeltaShadowBoundary::run(const InteriorEstimator& /*estimator*/, int view, const Image& adjoint, int samples, uint64_t stream,
-                                           uint64_t step, GradientScratchPool& scratch, std::vector<double>& gradient,
-                                           const std::atomic<bool>* cancel) const {
-  const Camera& cam = scene_.cameras[size_t(view)];
+BoundaryPassStats DeltaShadowBoundary::run(const BoundaryView& bv) {
+  const Camera& cam = scene_.cameras[size_t(bv.view)];
   std::vector<BorderSource> sources;
   std::vector<const Light*> lights;
   for (const Light& light : scene_.lights) {
@@ -25,9 +24,29 @@ BoundaryPassStats DeltaShadowBoundary::run(const InteriorEstimator& /*estimator*
     lights.push_back(&light);
   }
   return sampleShadowBorders(
-      scene_, params_, topology_, view, adjoint, samples, sources,
-      [&](uint32_t j, float fx, float fy, RayStats& rays) { return deltaSourceRadiance(scene_, cam, fx, fy, *lights[j], rays); }, stream,
-      step, scratch, gradient, cancel);
+      scene_, params_, topology_, bv.view, bv.adjoint, bv.samples, sources,
+      [&](uint32_t j, float fx, float fy, RayStats& rays) { return deltaSourceRadiance(scene_, cam, fx, fy, *lights[j], rays); }, bv.stream,
+      bv.step, bv.scratch, bv.gradient, bv.cancel);
 }
+
+namespace {
+
+const RegisterBoundaryTerm kDeltaShadows({
+    .name = "delta_shadows",
+    .order = 20,
+    .stream = kDeltaShadowBoundaryStream,
+    .applies = [](const Scene& scene, const GradientOptions& o) { return o.boundary.secondary && DeltaShadowBoundary::applies(scene); },
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
+      return std::make_unique<DeltaShadowBoundary>(s.scene, s.params, s.topology);
+    },
+    .describe =
+        [](const BoundaryPlanInput& in) {
+          return "boundary, secondary, point/spot lights: " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
+                 " samples per view and step on occluder silhouette edges seen from each light, that light's jump evaluated directly";
+        },
+    .memoryBytes = {},
+});
+
+}  // namespace
 
 }  // namespace invr

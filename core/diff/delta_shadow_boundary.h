@@ -11,13 +11,14 @@
 // side of the receiver the light does not reach, are skipped.
 #pragma once
 
-#include "core/diff/primary_boundary.h"
+#include "core/diff/boundary_sampling.h"
+#include "core/diff/boundary_term.h"
 
 namespace invr {
 
 inline constexpr StreamId kDeltaShadowBoundaryStream{13};
 
-class DeltaShadowBoundary {
+class DeltaShadowBoundary final : public BoundaryTerm {
  public:
   // topology[m] for every mesh (occluders may be static: a moving receiver moves their shadow).
   DeltaShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
@@ -25,8 +26,7 @@ class DeltaShadowBoundary {
   // Whether the scene has a point or spot light (else the estimator has nothing to do).
   static bool applies(const Scene& scene);
 
-  BoundaryPassStats run(const InteriorEstimator& estimator, int view, const Image& adjoint, int samples, uint64_t stream, uint64_t step,
-                        GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel = nullptr) const;
+  BoundaryPassStats run(const BoundaryView& view) override;
 
  private:
   const Scene& scene_;

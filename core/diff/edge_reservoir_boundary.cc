@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/diff/area_shadow_boundary.h"
 #include "core/diff/film_projection.h"
+#include "core/diff/gradient_engine.h"
 #include "core/diff/shadow_border.h"
 #include "core/math/sampling.h"
 
@@ -360,5 +362,86 @@ size_t EdgeReservoirBoundary::preserve(const std::vector<int>& views, std::vecto
   }
   return kept;
 }
+
+namespace {
+
+// The term as the engine runs it: a step's sampler over the session's reservoirs, collecting this
+// step's reservoirs view by view; with reuse they replace the session's at the end of the step,
+// with the previous ones no view of the batch sees (Alg. 8).
+class EdgeFirstAreaShadows final : public BoundaryTerm {
+ public:
+  EdgeFirstAreaShadows(const BoundaryStep& s, const EdgeSamplingSettings& settings)
+      : sampler_(s.scene, s.params, s.topology, s.session.edges, settings), store_(s.session.edges), views_(s.views),
+        keep_(settings.reuse), preserve_(settings.reuse && s.options.preserveOccluded && !s.allSessionViews) {}
+  BoundaryPassStats run(const BoundaryView& v) override {
+    return sampler_.run(v.view, v.adjoint, v.samples, v.stream, v.step, v.scratch, v.gradient, created_, v.cancel);
+  }
+  void endStep(RayStats& rays, std::vector<std::pair<std::string, uint64_t>>& counters) override {
+    if (!keep_) return;
+    // Alg. 8: the previous step's reservoirs whose p1 no view of this batch sees stay, unless the
+    // batch holds every view the session serves (then no later step could want them more).
+    const size_t preserved = preserve_ ? sampler_.preserve(views_, created_, rays) : 0;
+    store_.items = std::move(created_);
+    store_.index({});
+    counters.emplace_back("edge_reservoirs", store_.items.size());
+    counters.emplace_back("edge_reservoirs_preserved", preserved);
+  }
+
+ private:
+  EdgeReservoirBoundary sampler_;
+  EdgeReservoirSet& store_;
+  std::vector<int> views_;
+  bool keep_, preserve_;
+  std::vector<EdgeReservoir> created_;
+};
+
+EdgeSamplingSettings edgeSettings(const GradientOptions& o) {
+  const bool reuse = o.method == GradientMethod::Restir && !o.forwardOnly;
+  EdgeSamplingSettings es;
+  es.candidates = o.method == GradientMethod::Pt ? 1 : o.restir.candidates;
+  es.reuse = reuse;
+  es.edgeImportance = reuse && o.boundary.edgeImportance;
+  es.neighbours = o.boundary.edgeNeighbours;
+  return es;
+}
+
+const RegisterBoundaryTerm kEdgeFirst({
+    .name = "area_shadows_edge_first",
+    .order = 30,
+    .stream = kAreaShadowBoundaryStream,
+    .applies =
+        [](const Scene& scene, const GradientOptions& o) {
+          return o.boundary.secondary && o.boundary.areaSampling == BoundaryOptions::AreaSampling::EdgeFirst && EdgeReservoirBoundary::applies(scene);
+        },
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> { return std::make_unique<EdgeFirstAreaShadows>(s, edgeSettings(s.options)); },
+    .describe =
+        [](const BoundaryPlanInput& in) {
+          const GradientOptions& g = in.options;
+          const BoundaryOptions& b = g.boundary;
+          const bool reuse = edgeSettings(g).reuse;
+          const std::string light = g.method == GradientMethod::Pt ? std::string("one light sample")
+                                                                   : "streaming RIS over " + std::to_string(g.restir.candidates) + " light samples";
+          return "boundary, secondary, area lights (multi-directional, Eq. 21-26): " +
+                 std::to_string(b.samplesFor(in.scene.width, in.scene.height)) +
+                 " samples per view and step, an edge point first, then the light point by " + light +
+                 (reuse ? std::string("; an edge reservoir kept per sample (Alg. 6; Alg. 8 keeps those no view of the batch sees)") +
+                              (b.edgeNeighbours > 0 ? ", each sample merging " + std::to_string(b.edgeNeighbours) +
+                                                          " kd-tree neighbour(s) among the previous step's"
+                                                    : std::string()) +
+                              (b.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
+                        : std::string("; edges by length")) +
+                 "; jump evaluated directly";
+        },
+    // One reservoir per sample and view of a shard, this step's and the previous step's with its
+    // kd-tree, Alg. 8 survivors at most kMaxAge steps old.
+    .memoryBytes =
+        [](const BoundaryPlanInput& in) {
+          if (!edgeSettings(in.options).reuse) return 0.0;
+          return double(in.shardViews) * double(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) *
+                 double(sizeof(EdgeReservoir) + 24) * (in.options.preserveOccluded ? 2.0 + 1.0 : 2.0);
+        },
+});
+
+}  // namespace
 
 }  // namespace invr

@@ -27,7 +27,7 @@
 #pragma once
 
 #include "core/diff/boundary_sampling.h"
-#include "core/geometry/edge_topology.h"
+#include "core/diff/boundary_term.h"
 #include "core/restir/edge_reservoir.h"
 
 namespace invr {

@@ -2,13 +2,14 @@
 
 #include <algorithm>
 
+#include "core/diff/gradient_options.h"
 #include "core/diff/shadow_border.h"
 
 namespace invr {
 
 EnvironmentShadowBoundary::EnvironmentShadowBoundary(const Scene& scene, const ParameterRegistry& params,
-                                                     const std::vector<EdgeTopology>& topology)
-    : scene_(scene), params_(params), topology_(topology) {}
+                                                     const std::vector<EdgeTopology>& topology, int directions)
+    : directions_(directions), scene_(scene), params_(params), topology_(topology) {}
 
 bool EnvironmentShadowBoundary::applies(const Scene& scene) {
   for (const Light& l : scene.lights)
@@ -16,9 +17,9 @@ bool EnvironmentShadowBoundary::applies(const Scene& scene) {
   return false;
 }
 
-BoundaryPassStats EnvironmentShadowBoundary::run(int view, const Image& adjoint, int samples, int directions, uint64_t stream, uint64_t step,
-                                                 GradientScratchPool& scratch, std::vector<double>& gradient,
-                                                 const std::atomic<bool>* cancel) const {
+BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
+  const int view = bv.view, samples = bv.samples, directions = directions_;
+  const uint64_t stream = bv.stream, step = bv.step;
   const Camera& cam = scene_.cameras[size_t(view)];
   std::vector<uint32_t> environments;
   for (uint32_t i = 0; i < scene_.lights.size(); ++i)
@@ -39,9 +40,30 @@ BoundaryPassStats EnvironmentShadowBoundary::run(int view, const Image& adjoint,
     sources.push_back({ShadowSource::towards(dirs.back().wi), usable ? 1.0 / (pdf * double(directions)) : 0.0});
   }
   return sampleShadowBorders(
-      scene_, params_, topology_, view, adjoint, samples, sources,
+      scene_, params_, topology_, view, bv.adjoint, samples, sources,
       [&](uint32_t j, float fx, float fy, RayStats& rays) { return directionalSourceRadiance(scene_, cam, fx, fy, dirs[j], rays); }, stream,
-      step, scratch, gradient, cancel);
+      step, bv.scratch, bv.gradient, bv.cancel);
 }
+
+namespace {
+
+const RegisterBoundaryTerm kEnvironmentShadows({
+    .name = "environment_shadows",
+    .order = 40,
+    .stream = kEnvironmentShadowBoundaryStream,
+    .applies = [](const Scene& scene, const GradientOptions& o) { return o.boundary.secondary && EnvironmentShadowBoundary::applies(scene); },
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
+      return std::make_unique<EnvironmentShadowBoundary>(s.scene, s.params, s.topology, s.options.boundary.lightPoints);
+    },
+    .describe =
+        [](const BoundaryPlanInput& in) {
+          return "boundary, secondary, environment lights: " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
+                 " samples per view and step over the silhouette edges of " + std::to_string(in.options.boundary.lightPoints) +
+                 " directions per pass drawn by the environment's sampling, jump evaluated directly";
+        },
+    .memoryBytes = {},
+});
+
+}  // namespace
 
 }  // namespace invr

@@ -11,23 +11,23 @@
 #pragma once
 
 #include "core/diff/boundary_sampling.h"
-#include "core/geometry/edge_topology.h"
+#include "core/diff/boundary_term.h"
 
 namespace invr {
 
 inline constexpr StreamId kEnvironmentShadowBoundaryStream{15};
 
-class EnvironmentShadowBoundary {
+class EnvironmentShadowBoundary final : public BoundaryTerm {
  public:
-  EnvironmentShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
+  EnvironmentShadowBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, int directions);
 
   // Whether the scene has an environment light (else the estimator has nothing to do).
   static bool applies(const Scene& scene);
 
-  BoundaryPassStats run(int view, const Image& adjoint, int samples, int directions, uint64_t stream, uint64_t step,
-                        GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel = nullptr) const;
+  BoundaryPassStats run(const BoundaryView& view) override;
 
  private:
+  int directions_;
   const Scene& scene_;
   const ParameterRegistry& params_;
   const std::vector<EdgeTopology>& topology_;

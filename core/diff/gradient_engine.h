@@ -24,6 +24,7 @@
 #include "core/restir/edge_reservoir.h"
 #include "core/diff/parameters.h"
 #include "core/diff/sample_drops.h"
+#include "invr/v1/stats.pb.h"
 
 namespace invr {
 
@@ -50,39 +51,9 @@ struct GradientRequest {
 };
 
 
-struct GradientStats {
-  // The loss of this step's views, unbiased: the mean of (I1 - T)(I2 - T) over pixels, from the
-  // two independent renders (l2, relative_l2; for l1, |(I1 + I2)/2 - T|). One render's (I - T)^2
-  // would add the render's variance to the figure.
-  double loss = 0.0;
-  std::vector<double> viewLoss;
-  // Variance-aware jobs: loss = biasTerm + varianceTerm, varianceTerm = (weight / K) * V with V the
-  // unbiased per-pixel variance estimate (mean over pixels and channels; variance pass).
-  double biasTerm = 0.0, varianceTerm = 0.0;
-  // Variance-aware jobs: the render cost t in rays per camera sample (Eq. 36, calibrated from the
-  // derivative pass's ray counts), as a mean over the batch's views (shards add up).
-  double cost = 0.0;
-  double secondsVariance = 0;
-  double secondsPrimal = 0, secondsDerivative = 0, secondsReservoirUpdate = 0;
-  double secondsStage1 = 0;   // pixel-sampling maps (when refreshed this step)
-  uint64_t pixelsTraced = 0;  // distinct pixels traced by the primal pass
-  SampleDrops drops;          // non-finite samples, by where they were met
-  uint64_t nonFiniteSamples = 0;  // drops.total()
-  size_t reservoirs = 0, reservoirsPreserved = 0;
-  size_t reservoirsCarried = 0;  // of the preserved: kept because their pixel was not drawn (pixel mini-batches)
-  double meanNeighbours = 0, meanM = 0;
-  int kdTreesBuilt = 0;  // ReSTIR chains that needed their kd-tree this step (0-2)
-  // Shape parameters: the boundary passes (primary; point/spot, area and environment shadow borders).
-  double secondsBoundary = 0;
-  uint64_t boundaryEdges = 0;    // candidate edges the passes sampled from, summed over views and terms
-  uint64_t boundarySamples = 0;
-  size_t edgeReservoirs = 0, edgeReservoirsPreserved = 0;  // kept for the next step (Alg. 6), of which by Alg. 8
-  RayStats rays;
-};
-
 struct GradientResult {
   std::vector<double> gradient;  // d loss / d theta, one entry per parameter value
-  GradientStats stats;
+  invr::v1::GradientStats stats;  // what the evaluation computed (proto/invr/v1/stats.proto)
   std::vector<Image> renders;    // primal image per requested view
   std::vector<Image> variances;  // variance-aware jobs: per requested view, the per-pixel variance estimate
 };
@@ -99,6 +70,8 @@ class GradientScratchPool;
 class GradientEngine {
  public:
   // targets[v] is the image view v should reproduce (may be empty for views never requested).
+  // The options are a job's, validated with the scene and parameters when it was built
+  // (validateGradientJob): the engine keeps invariants only.
   GradientEngine(const Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options);
   ~GradientEngine();
 
@@ -112,7 +85,19 @@ class GradientEngine {
   // correction (Yan et al. 2024, Eq. 9). A result map of variance-aware jobs.
   Image sampleVarianceMap(int view, int spp, uint64_t seed, const std::atomic<bool>* cancel = nullptr);
 
+  // The boundary terms this engine runs (shape parameters), in run order.
+  const std::vector<const BoundaryTermKind*>& boundaryTerms() const { return boundaryTerms_; }
+
  private:
+  struct Step;  // one evaluation's working state (gradient_engine.cc)
+  // The phases of evaluate(), in order.
+  void prepareReservoirs(Step& s);
+  void drawPixelBatches(Step& s);
+  void primalPass(Step& s);
+  void derivativePass(Step& s);
+  void boundaryPasses(Step& s);
+  void variancePass(Step& s);
+  void storeReservoirs(Step& s);
   Stage1 runStage1(int view, const GradientRequest& req, SampleDrops& drops);
   // The loss mask of a view (opt_.lossMasks), or null when it has none.
   const std::vector<float>* maskOf(int view) const {
@@ -125,11 +110,8 @@ class GradientEngine {
   GradientOptions opt_;
   std::unique_ptr<GradientScratchPool> scratch_;
   std::vector<EdgeTopology> topology_;  // per mesh, when shape parameters move any (rigid motion keeps it valid)
+  std::vector<const BoundaryTermKind*> boundaryTerms_;
 };
-
-// Throws InputError saying what a job with shape parameters asks for that the shape derivatives
-// do not cover yet (no-op without shape parameters).
-void checkShapeJob(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options);
 
 // True if the surface point p is inside camera's frustum and not occluded from it.
 bool visibleFromCamera(const Scene& scene, const Camera& camera, Vec3 p, Vec3 n);

@@ -1,58 +1,25 @@
 // How the gradient engine estimates a step: the interior estimator (PT, RIS or ReSTIR), its
-// sample counts, the loss and which pixels a step traces.
+// sample counts, the loss and which pixels a step traces, and the options of the pixel samplers,
+// the variance pass and the boundary terms (each parsed beside its own code). The defaults here
+// are a job's defaults.
 #pragma once
 
 #include <algorithm>
 #include <string>
 #include <vector>
 
+#include "core/diff/boundary_term.h"
 #include "core/diff/loss.h"
 #include "core/diff/pixel_sampler.h"
+#include "core/diff/variance_options.h"
 #include "core/restir/direct_restir.h"
+#include "invr/v1/job.pb.h"
 
 namespace invr {
 
 enum class GradientMethod { Pt, Ris, Restir };
 GradientMethod gradientMethodFromName(const std::string& name);  // throws InputError
 const char* gradientMethodName(GradientMethod m);
-
-// Variance-aware losses (Yan et al. 2024, Eq. 26-33): L = L_bias + (weight / samples) * V, with V the
-// per-pixel variance of one sample of the job's estimator (mean over pixels and channels, like the
-// loss). A variance pass of `spp` samples per pixel estimates V's derivative (variance_visitor.h).
-// With the depth cost model the loss is time-aware (Eq. 33): L* = L_bias + weight * t * V, with t
-// the render cost per camera sample in rays (render_cost.h), and `samples` unused.
-enum class VarianceCost { None, Depth };
-
-struct VarianceOptions {
-  bool enabled = false;
-  VarianceCost cost = VarianceCost::None;
-  double weight = 1.0;   // lambda (lambda* with the depth cost model)
-  double samples = 1.0;  // K: samples per pixel of the render whose variance is weighed
-  bool detached = false; // the detached baseline (Weier et al. 2021) instead of the unbiased estimator
-  int spp = 1;           // training spp of the variance pass
-};
-
-// Shape parameters: the boundary terms of their derivatives (Wang et al. 2023, §5-6;
-// docs/differentiable-rendering.md). primary/secondary switch the terms off for ablations.
-struct BoundaryOptions {
-  bool primary = true;    // silhouette and crease edges of moving meshes seen by the camera
-  bool secondary = true;  // shadow borders of point, spot, area and environment lights
-  int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
-  int lightPoints = 16;   // light points (area lights) and directions (environments) per pass whose shadow borders are sampled
-  // ReSTIR: test the support of reused samples in the current geometry (the paper's multi-view
-  // shortcut, §3.2), which is biased once geometry moves. Default: in the geometry each sample was
-  // created in (unbiased; the reservoir store keeps the moving meshes' poses for that).
-  bool multiViewShortcut = false;
-  // Area lights' shadow borders: sampled edge point first with the light point by RIS (Alg. 6;
-  // restir reuses edge reservoirs across steps) or light points first (area_shadow_boundary.h).
-  enum class AreaSampling { EdgeFirst, LightPoints };
-  AreaSampling areaSampling = AreaSampling::EdgeFirst;
-  bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
-  // restir: previous-step edge reservoirs merged per sample (Alg. 6). 0: they steer edge importance
-  // only; merging measured no gain (docs/differentiable-rendering.md).
-  int edgeNeighbours = 0;
-  int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
-};
 
 struct GradientOptions {
   GradientMethod method = GradientMethod::Restir;
@@ -79,5 +46,11 @@ struct GradientOptions {
   VarianceOptions variance;
   BoundaryOptions boundary;  // used when shape parameters are optimised
 };
+
+// Every field of optimization that sets the gradient options (the loss masks excepted: they are
+// images, read by the job's builder), for a film of width x height. Throws InputError naming the
+// field at fault for a value out of range; combinations that need the scene and the parameters
+// are checked by validateGradientJob (gradient_job_check.h).
+GradientOptions parseGradientOptions(const invr::v1::OptimizationSpec& optimization, int width, int height);
 
 }  // namespace invr

@@ -12,4 +12,18 @@ std::vector<float> lossGradMap(const Stage1& s) {
   return cells;
 }
 
+namespace {
+
+class LossGradPixels final : public PixelSampler {
+ public:
+  const char* name() const override { return "loss_grad"; }
+  bool usesStage1() const override { return true; }
+  std::vector<float> cellValues(const Stage1& s, const PixelSamplingOptions&) const override { return lossGradMap(s); }
+  std::string describe(const PixelSamplingOptions&) const override { return "p_j ~ |dL/dI_j| (Su & Gkioulekas 2024)"; }
+};
+
+const RegisterPixelSampler kRegistered(20, std::make_unique<LossGradPixels>());
+
+}  // namespace
+
 }  // namespace invr

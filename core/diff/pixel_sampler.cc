@@ -2,27 +2,86 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "core/error.h"
 
 namespace invr {
 
-PixelSampler pixelSamplerFromName(const std::string& name) {
-  if (name == "all") return PixelSampler::All;
-  if (name == "uniform") return PixelSampler::Uniform;
-  if (name == "loss_grad") return PixelSampler::LossGrad;
-  if (name == "adaptive") return PixelSampler::Adaptive;
-  throw InputError("unknown pixel sampler '" + name + "' (use all, uniform, loss_grad or adaptive)");
+namespace {
+
+class AllPixels final : public PixelSampler {
+ public:
+  const char* name() const override { return "all"; }
+  bool miniBatch() const override { return false; }
+  std::string describe(const PixelSamplingOptions&) const override { return "every pixel, every step"; }
+};
+
+class UniformPixels final : public PixelSampler {
+ public:
+  const char* name() const override { return "uniform"; }
+  std::string describe(const PixelSamplingOptions&) const override { return "p_j = 1 / P"; }
+};
+
+struct Registry {
+  std::vector<std::pair<int, std::unique_ptr<PixelSampler>>> owned;
+  std::vector<const PixelSampler*> ordered;
+  void add(int order, std::unique_ptr<PixelSampler> s) {
+    for (const auto& [o, k] : owned)
+      if (std::string(k->name()) == s->name()) throw std::logic_error(std::string("pixel sampler '") + s->name() + "' registered twice");
+    owned.emplace_back(order, std::move(s));
+    std::stable_sort(owned.begin(), owned.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    ordered.clear();
+    for (const auto& [o, k] : owned) ordered.push_back(k.get());
+  }
+};
+
+// The samplers without maps are here, so they exist before any file's registration runs.
+Registry& registry() {
+  static Registry r = [] {
+    Registry x;
+    x.add(0, std::make_unique<AllPixels>());
+    x.add(10, std::make_unique<UniformPixels>());
+    return x;
+  }();
+  return r;
 }
 
-const char* pixelSamplerName(PixelSampler s) {
-  switch (s) {
-    case PixelSampler::All: return "all";
-    case PixelSampler::Uniform: return "uniform";
-    case PixelSampler::LossGrad: return "loss_grad";
-    default: return "adaptive";
+}  // namespace
+
+RegisterPixelSampler::RegisterPixelSampler(int order, std::unique_ptr<PixelSampler> sampler) { registry().add(order, std::move(sampler)); }
+
+const std::vector<const PixelSampler*>& pixelSamplers() { return registry().ordered; }
+
+const PixelSampler& pixelSampler(const std::string& name) {
+  std::string names;
+  for (const PixelSampler* s : pixelSamplers()) {
+    if (name == s->name()) return *s;
+    names += std::string(names.empty() ? "" : ", ") + s->name();
   }
+  throw InputError("unknown pixel sampler '" + name + "' (use " + names + ")");
+}
+
+PixelSamplingOptions parsePixelSamplingOptions(const invr::v1::OptimizationSpec& o, int filmPixels) {
+  auto fail = [](const std::string& field, const std::string& why) { throw InputError("optimization." + field + ": " + why); };
+  const PixelSamplingOptions defaults;
+  PixelSamplingOptions p;
+  try {
+    p.sampler = &pixelSampler(o.pixel_sampler().empty() ? defaults.sampler->name() : o.pixel_sampler());
+  } catch (const InputError& e) {
+    fail("pixel_sampler", e.what());
+  }
+  if (o.pixel_samples() < 0 || o.pixel_samples() > 16 * filmPixels)
+    fail("pixel_samples", "must be in 1.." + std::to_string(16 * filmPixels) + " (got " + std::to_string(o.pixel_samples()) + ")");
+  p.samplesPerView = o.pixel_samples();
+  if (!(o.pixel_defensive() >= 0 && o.pixel_defensive() <= 1))
+    fail("pixel_defensive", "must be in (0, 1]: every pixel needs a probability above zero");
+  p.defensive = o.pixel_defensive() > 0 ? float(o.pixel_defensive()) : defaults.defensive;
+  if (o.pixel_refresh() < 0 || o.pixel_refresh() > 100000) fail("pixel_refresh", "must be in 1..100000 (got " + std::to_string(o.pixel_refresh()) + ")");
+  p.refreshEvery = o.pixel_refresh() > 0 ? o.pixel_refresh() : defaults.refreshEvery;
+  return p;
 }
 
 std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& cells) {
@@ -91,11 +150,10 @@ PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t 
   uint64_t* nonFinite = drops ? &drops->pixelMap : nullptr;
   m.computedAt = step;
   const size_t n = size_t(s.width) * size_t(s.height);
-  switch (o.sampler) {
-    case PixelSampler::LossGrad: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, lossGradMap(s)), o.defensive, nonFinite)); break;
-    case PixelSampler::Adaptive: m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, adaptiveMap(s, o.levels)), o.defensive, nonFinite)); break;
-    default: m.setProbabilities(std::vector<float>(n, float(1.0 / double(n)))); break;
-  }
+  if (o.sampler->usesStage1())
+    m.setProbabilities(defensiveMixture(upsampleEdgeAware(s, o.sampler->cellValues(s, o)), o.defensive, nonFinite));
+  else
+    m.setProbabilities(std::vector<float>(n, float(1.0 / double(n))));
   return m;
 }
 

@@ -2,10 +2,10 @@
 // samples per view from probabilities p_j and weights pixel j by count_j / (N p_j), so the
 // mini-batch gradient equals the full-image gradient in expectation whatever p is, as long as
 // every p_j > 0: a defensive mixture with uniform guarantees that even where the stage-1 estimate
-// is unreliable (caustics).
+// is unreliable (caustics). Each sampler is one file that registers itself:
 //
-//   all       every pixel, every step (no mini-batch)
-//   uniform   p_j = 1 / P
+//   all       every pixel, every step (no mini-batch)                              pixel_sampler.cc
+//   uniform   p_j = 1 / P                                                          pixel_sampler.cc
 //   loss_grad p_j ~ |dL/dI_j|                        (Su & Gkioulekas 2024)      loss_grad_sampler.cc
 //   adaptive  p_j ~ sqrt(p_j1 p_j2) (Eq. 12): p_j1 from (dL/dI_j)^2, p_j2 from the per-path sum of
 //             squared parameter derivatives (Eq. 16); over D resolution levels (Eq. 18)  adaptive_sampler.cc
@@ -15,13 +15,16 @@
 // by the first-hit normal and albedo before they become probabilities.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "core/math/rng.h"
 #include "core/diff/sample_drops.h"
 #include "core/math/sampling.h"
+#include "invr/v1/job.pb.h"
 
 namespace invr {
 
@@ -29,18 +32,25 @@ inline constexpr StreamId kStage1PrimalStream{3};      // stage 1: dL/dI on the 
 inline constexpr StreamId kStage1DerivativeStream{4};  // stage 1: squared parameter derivatives
 inline constexpr StreamId kPixelBatchStream{6};        // which pixels a step traces
 
-enum class PixelSampler { All, Uniform, LossGrad, Adaptive };
-PixelSampler pixelSamplerFromName(const std::string& name);  // throws InputError
-const char* pixelSamplerName(PixelSampler s);
+class PixelSampler;
+// The registered sampler of that name; throws InputError listing the names there are.
+const PixelSampler& pixelSampler(const std::string& name);
+// Every registered sampler, in the order they are listed (all, uniform, then the stage-1 maps).
+const std::vector<const PixelSampler*>& pixelSamplers();
 
 struct PixelSamplingOptions {
-  PixelSampler sampler = PixelSampler::All;
+  const PixelSampler* sampler = &pixelSampler("all");
   int samplesPerView = 0;     // N: pixel samples drawn per view and step (0: a quarter of the pixels)
   float defensive = 0.2f;     // weight of the uniform component of the mixture
   int refreshEvery = 20;      // steps between stage-1 refreshes
   int stage1Stride = 2;       // stage 1 traces every stride-th pixel in x and y
   int levels = 4;             // D of Eq. 18 (adaptive)
+  int samplesFor(size_t pixels) const { return samplesPerView > 0 ? samplesPerView : std::max<int>(1, int(pixels / 4)); }
 };
+
+// optimization.pixel_sampler, pixel_samples, pixel_defensive and pixel_refresh for a film of
+// `filmPixels`. Throws InputError naming the field.
+PixelSamplingOptions parsePixelSamplingOptions(const invr::v1::OptimizationSpec& optimization, int filmPixels);
 
 // Stage-1 measurements on the sparse grid (gw x gh cells, cell (i, j) at pixel
 // (i*stride + stride/2, j*stride + stride/2)), and the guides for the edge-aware upsampling.
@@ -73,10 +83,35 @@ std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& 
 // (all zero, non-finite) falls back to uniform.
 std::vector<float> defensiveMixture(const std::vector<float>& map, float defensive, uint64_t* nonFinite = nullptr);
 
+// A way of choosing a step's pixels. Samplers whose probabilities come from stage 1 return its
+// per-cell values; the defensive mixture and the upsampling are shared (buildPixelMap).
+class PixelSampler {
+ public:
+  virtual ~PixelSampler() = default;
+  virtual const char* name() const = 0;
+  // False: every pixel, every step (no mini-batch, no weights).
+  virtual bool miniBatch() const { return true; }
+  // True: probabilities from stage-1 statistics, refreshed every refreshEvery steps.
+  virtual bool usesStage1() const { return false; }
+  // Unnormalised probability per stage-1 cell (samplers that use stage 1).
+  virtual std::vector<float> cellValues(const Stage1& s, const PixelSamplingOptions& o) const {
+    (void)s, (void)o;
+    return {};
+  }
+  // What the plan says it draws by (after "pixels: <name>").
+  virtual std::string describe(const PixelSamplingOptions& o) const = 0;
+};
+
+// Registers a sampler; a file defines one at namespace scope. `order` places it in pixelSamplers().
+// Throws std::logic_error for a name already registered.
+struct RegisterPixelSampler {
+  RegisterPixelSampler(int order, std::unique_ptr<PixelSampler> sampler);
+};
+
 std::vector<float> lossGradMap(const Stage1& s);                // loss_grad_sampler.cc
 std::vector<float> adaptiveMap(const Stage1& s, int levels);    // adaptive_sampler.cc
 
-// The sampler's probabilities from a stage-1 measurement (uniform needs none).
+// The sampler's probabilities from a stage-1 measurement (uniform ones for samplers without).
 PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step, SampleDrops* drops = nullptr);
 
 // A mini-batch of one view: per pixel, how many of the N draws chose it and its weight

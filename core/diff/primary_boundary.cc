@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/diff/film_projection.h"
+#include "core/diff/gradient_options.h"
 #include "core/math/sampling.h"
 
 namespace invr {
@@ -70,9 +71,11 @@ float sideOffset(const Scene& scene, const Camera& cam, const FilmEdge& e, Vec2 
 PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
     : scene_(scene), params_(params), topology_(topology) {}
 
-BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int view, const Image& adjoint, int samples, uint64_t stream,
-                                       uint64_t step, GradientScratchPool& scratchPool, std::vector<double>& gradient,
-                                       const std::atomic<bool>* cancel) const {
+BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
+  const int view = bv.view, samples = bv.samples;
+  const uint64_t stream = bv.stream, step = bv.step;
+  const Image& adjoint = bv.adjoint;
+  const InteriorEstimator& estimator = bv.estimator;
   const Camera& cam = scene_.cameras[size_t(view)];
   const int W = scene_.width, H = scene_.height;
   const float zNear = 1e-4f * scene_.radius;
@@ -118,7 +121,7 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
   const Distribution1D pick(lengths);
   const float total = float(st.filmLength);
 
-  runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
+  runBoundarySamples(samples, bv.scratch, bv.gradient, bv.cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
     Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
     float u = 0.f;
     const FilmEdge& e = edges[pick.sample(sampler.next1D(), &u)];
@@ -148,5 +151,24 @@ BoundaryPassStats PrimaryBoundary::run(const InteriorEstimator& estimator, int v
   });
   return st;
 }
+
+namespace {
+
+const RegisterBoundaryTerm kPrimary({
+    .name = "primary",
+    .order = 10,
+    .stream = kPrimaryBoundaryStream,
+    .applies = [](const Scene&, const GradientOptions& o) { return o.boundary.primary; },
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> { return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology); },
+    .describe =
+        [](const BoundaryPlanInput& in) {
+          return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
+                 " edge samples per view and step on silhouette and crease edges of moving meshes, by clipped film length, hidden edge "
+                 "points skipped; both sides traced with the interior estimator; box pixel filter, so no pixel-boundary term";
+        },
+    .memoryBytes = {},
+});
+
+}  // namespace
 
 }  // namespace invr

@@ -11,31 +11,29 @@
 // and a point uniformly along that length (pdf 1 / total length), then traces one camera sample on
 // each side with the job's interior estimator (PT, RIS or ReSTIR with the previous step's
 // reservoirs as neighbours: Alg. 5), and weighs the difference by dLoss/dI of the pixel it falls
-// in. Edges hidden behind other surfaces need no visibility test: both sides then see the same
-// surface and the difference vanishes.
+// in. An edge point hidden from the camera is skipped (a ray towards it, stopped just short of
+// it): both sides would see what lies in front, whose small change across the two sides is not
+// the edge's jump.
 #pragma once
 
 #include <atomic>
 #include <vector>
 
 #include "core/diff/boundary_sampling.h"
-#include "core/geometry/edge_topology.h"
-#include "core/image/image.h"
+#include "core/diff/boundary_term.h"
 
 namespace invr {
 
 inline constexpr StreamId kPrimaryBoundaryStream{12};
 
-class PrimaryBoundary {
+class PrimaryBoundary final : public BoundaryTerm {
  public:
   // topology[m] for every mesh the registry moves (others may be empty).
   PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
 
-  // Adds adjoint-weighted edge samples for one view into `gradient`. `adjoint` is dLoss/dI per
-  // pixel and channel (every pixel traced). Deterministic: sample i draws from the stream
-  // (stream, step, view, i) and chunks are reduced in order.
-  BoundaryPassStats run(const InteriorEstimator& estimator, int view, const Image& adjoint, int samples, uint64_t stream, uint64_t step,
-                        GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel = nullptr) const;
+  // Adds adjoint-weighted edge samples for one view into its gradient. `adjoint` is dLoss/dI per
+  // pixel and channel (every pixel traced); both sides are traced with the view's estimator.
+  BoundaryPassStats run(const BoundaryView& view) override;
 
   // How far off the edge, in pixels, the two sides are sampled.
   static constexpr float kSideOffsetPixels = 1e-3f;

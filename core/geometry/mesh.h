@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "core/math/vec.h"
+#include "core/math/affine.h"
 
 namespace invr {
 

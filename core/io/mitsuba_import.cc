@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/math/affine.h"
 #include "core/io/job_io.h"
 #include "core/limits.h"
 
@@ -47,37 +48,16 @@ std::string readSceneFile(const fs::path& p, const std::string& what) {
 }
 
 
-// Row-major 4x4 affine transform in double precision (Mitsuba composes to_world this way).
-struct M4 {
-  double m[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
-  friend M4 operator*(const M4& a, const M4& b) {
-    M4 r;
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) {
-        double s = 0;
-        for (int k = 0; k < 4; ++k) s += a.m[i][k] * b.m[k][j];
-        r.m[i][j] = s;
-      }
-    return r;
-  }
-  std::array<double, 3> point(std::array<double, 3> p) const {
-    return {m[0][0] * p[0] + m[0][1] * p[1] + m[0][2] * p[2] + m[0][3], m[1][0] * p[0] + m[1][1] * p[1] + m[1][2] * p[2] + m[1][3],
-            m[2][0] * p[0] + m[2][1] * p[1] + m[2][2] * p[2] + m[2][3]};
-  }
-  std::array<double, 3> vector(std::array<double, 3> v) const {
-    return {m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2], m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
-            m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2]};
-  }
-  bool isIdentity() const {
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j)
-        if (m[i][j] != (i == j ? 1.0 : 0.0)) return false;
-    return true;
-  }
-  bool isAffine() const { return m[3][0] == 0 && m[3][1] == 0 && m[3][2] == 0 && m[3][3] == 1; }
-};
-
 using D3 = std::array<double, 3>;
+// Mitsuba composes to_world in double: points and directions through it, kept in double.
+D3 applyPoint(const Affine3d& a, D3 p) {
+  return {a.m[0][0] * p[0] + a.m[0][1] * p[1] + a.m[0][2] * p[2] + a.m[0][3], a.m[1][0] * p[0] + a.m[1][1] * p[1] + a.m[1][2] * p[2] + a.m[1][3],
+          a.m[2][0] * p[0] + a.m[2][1] * p[1] + a.m[2][2] * p[2] + a.m[2][3]};
+}
+D3 applyVector(const Affine3d& a, D3 v) {
+  return {a.m[0][0] * v[0] + a.m[0][1] * v[1] + a.m[0][2] * v[2], a.m[1][0] * v[0] + a.m[1][1] * v[1] + a.m[1][2] * v[2],
+          a.m[2][0] * v[0] + a.m[2][1] * v[1] + a.m[2][2] * v[2]};
+}
 D3 sub(D3 a, D3 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 D3 add(D3 a, D3 b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
 D3 crossD(D3 a, D3 b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
@@ -533,12 +513,12 @@ class Importer {
   }
 
   // ------------------------------------------------------------------ transforms
-  M4 transformOf(pugi::xml_node t) {
-    M4 m;
+  Affine3d transformOf(pugi::xml_node t) {
+    Affine3d m;
     for (auto c : t.children()) {
       if (c.type() != pugi::node_element) continue;
       std::string tag = c.name();
-      M4 op;
+      Affine3d op;
       if (tag == "translate") {
         D3 v = pointOf(c);
         if (c.attribute("value") && numbers(c, c.attribute("value").value(), "translate").size() != 3) fail(c, "translate needs 3 numbers");
@@ -581,7 +561,8 @@ class Importer {
       } else if (tag == "matrix") {
         auto v = numbers(c, attr(c, "value"), "matrix");
         if (v.size() == 16) {
-          for (int i = 0; i < 4; ++i)
+          if (v[12] != 0 || v[13] != 0 || v[14] != 0 || v[15] != 1) fail(c, "projective matrices are not supported (the last row must be 0 0 0 1)");
+          for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 4; ++j) op.m[i][j] = v[size_t(i * 4 + j)];
         } else if (v.size() == 9) {
           for (int i = 0; i < 3; ++i)
@@ -589,7 +570,6 @@ class Importer {
         } else {
           fail(c, "a matrix needs 16 numbers (or 9), got " + std::to_string(v.size()));
         }
-        if (!op.isAffine()) fail(c, "projective matrices are not supported (the last row must be 0 0 0 1)");
       } else if (tag == "lookat") {
         auto vec3 = [&](const char* a, D3 dflt) {
           if (!c.attribute(a)) return dflt;
@@ -626,13 +606,13 @@ class Importer {
     }
     return m;
   }
-  M4 toWorld(Props& p) {
+  Affine3d toWorld(Props& p) {
     pugi::xml_node t = p.get("to_world");
     if (!t) return {};
     expectTag(t, {"transform"});
     return transformOf(t);
   }
-  static void setMatrix(v1::Transform* t, const M4& m) {
+  static void setMatrix(v1::Transform* t, const Affine3d& m) {
     t->clear_matrix();
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 4; ++j) t->add_matrix(m.m[i][j]);
@@ -885,7 +865,7 @@ class Importer {
     std::string type = n.attribute("type").value();
     Props p = props(n);
     v1::Shape s;
-    M4 xf = toWorld(p);
+    Affine3d xf = toWorld(p);
     if (type == "obj" || type == "ply") {
       std::string file = stringProp(p, "filename", "");
       if (file.empty()) fail(n, "a " + type + " shape needs a filename");
@@ -909,7 +889,7 @@ class Importer {
       D3 c = pointProp(p, "center", {0, 0, 0});
       double r = floatProp(p, "radius", 1.0);
       if (!(r > 0)) fail(p.named["radius"], "radius must be positive");
-      M4 local;
+      Affine3d local;
       for (int i = 0; i < 3; ++i) {
         local.m[i][i] = r;
         local.m[i][3] = c[size_t(i)];
@@ -954,16 +934,16 @@ class Importer {
     v1::Light l;
     l.set_name(uniqueName(lightNames_, n.attribute("id").value(), type));
     if (type == "point") {
-      M4 xf = toWorld(p);
+      Affine3d xf = toWorld(p);
       D3 pos = pointProp(p, "position", {0, 0, 0});
       if (p.used.count("position") && p.used.count("to_world")) fail(n, "give either position or to_world");
-      pos = xf.point(pos);
+      pos = applyPoint(xf, pos);
       *l.mutable_point()->mutable_position() = toVec(pos);
       pugi::xml_node in = p.get("intensity");
       *l.mutable_point()->mutable_intensity() = toRgb(in ? emission(in, "'intensity'") : D3{1, 1, 1});
     } else if (type == "spot") {
-      M4 xf = toWorld(p);
-      D3 pos = xf.point({0, 0, 0}), dir = xf.vector({0, 0, 1});
+      Affine3d xf = toWorld(p);
+      D3 pos = applyPoint(xf, {0, 0, 0}), dir = applyVector(xf, {0, 0, 1});
       if (!(lenD(dir) > 0)) fail(n, "to_world collapses the spot's direction");
       *l.mutable_spot()->mutable_position() = toVec(pos);
       *l.mutable_spot()->mutable_target() = toVec(add(pos, scaleD(dir, 1.0 / lenD(dir))));
@@ -989,7 +969,7 @@ class Importer {
       if (scale != 1.0) l.set_scale(scale);
       // Mitsuba's map has u = 0.5 towards +z where invr's looks towards -z: half a turn about +y,
       // plus whatever turn about +y to_world adds (other rotations cannot be expressed).
-      M4 xf = toWorld(p);
+      Affine3d xf = toWorld(p);
       const double eps = 1e-6;
       bool yRotation = std::abs(xf.m[1][1] - 1) < eps && std::abs(xf.m[0][1]) < eps && std::abs(xf.m[2][1]) < eps &&
                        std::abs(xf.m[1][0]) < eps && std::abs(xf.m[1][2]) < eps && std::abs(xf.m[0][0] - xf.m[2][2]) < eps &&
@@ -1013,7 +993,7 @@ class Importer {
     std::string type = n.attribute("type").value();
     if (type != "perspective") fail(n, "sensor type '" + type + "' is not supported (perspective)");
     Props p = props(n);
-    M4 xf = toWorld(p);
+    Affine3d xf = toWorld(p);
     // Film and sampler first: fov_axis needs the film's aspect.
     int width = 768, height = 576, spp = 4;
     bool haveFilm = false, haveSampler = false;
@@ -1105,7 +1085,7 @@ class Importer {
     double fovY = 2.0 * std::atan(tY) * 180.0 / kPiD;
 
     // Mitsuba's camera looks along local +z with +y up and +x to the image's left.
-    D3 eye = xf.point({0, 0, 0}), fwd = xf.vector({0, 0, 1}), up = xf.vector({0, 1, 0}), left = xf.vector({1, 0, 0});
+    D3 eye = applyPoint(xf, {0, 0, 0}), fwd = applyVector(xf, {0, 0, 1}), up = applyVector(xf, {0, 1, 0}), left = applyVector(xf, {1, 0, 0});
     if (!(lenD(fwd) > 0 && lenD(up) > 0)) fail(n, "to_world collapses the camera frame");
     {
       const double eps = 1e-5;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 
-#include "core/restir/edge_reservoir.h"
 #include "core/restir/reservoir_store.h"
 
 namespace invr {
@@ -40,15 +39,10 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
     double points = 0;
     for (const Light& l : s.lights) points += l.kind == LightKind::Area || l.isInfinite() ? double(g.boundary.lightPoints) : l.isDelta() ? 1.0 : 0.0;
     w.boundary = tris * 1.5 * 20 + tris * 3 * 4 + tris * 1.5 * (points + 1) * 36;
-    // Edge reservoirs (restir, edge-first area shadows): one per secondary sample and view of a
-    // shard, this step's and the previous step's with its kd-tree, Alg. 8 survivors at most
-    // EdgeReservoirBoundary::kMaxAge steps old.
-    bool area = false;
-    for (const Light& l : s.lights) area = area || l.kind == LightKind::Area;
-    if (area && g.method == GradientMethod::Restir && !g.forwardOnly && g.boundary.secondary &&
-        g.boundary.areaSampling == BoundaryOptions::AreaSampling::EdgeFirst)
-      w.boundary += double(maxShard) * double(g.boundary.samplesFor(s.width, s.height)) * double(sizeof(EdgeReservoir) + 24) *
-                    (g.preserveOccluded ? 2.0 + 1.0 : 2.0);
+    // What the boundary terms keep beyond that (edge reservoirs).
+    const BoundaryPlanInput input{s, g, maxShard};
+    for (const BoundaryTermKind* term : boundaryTermsFor(s, p.params, g))
+      if (term->memoryBytes) w.boundary += term->memoryBytes(input);
   }
   return w;
 }

@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include "core/diff/gradient_job_check.h"
+
 namespace invr {
 
 namespace {
@@ -58,15 +60,14 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
              num(g.restir.mCap) + ", burn-in " + std::to_string(p.burnIn) + (g.forwardOnly ? ", forward only" : "") +
              (g.preserveOccluded ? ", reservoirs no step replaced are kept (Alg. 8)" : "");
   est.push_back(light);
-  const int batchSamples = g.pixels.samplesPerView > 0 ? g.pixels.samplesPerView : int(pixels / 4);  // the engine's default
-  std::string px = "pixels: " + std::string(pixelSamplerName(g.pixels.sampler));
-  if (g.pixels.sampler != PixelSampler::All)
-    px += " mini-batch of " + std::to_string(batchSamples) + " pixel samples per view, each traced, weighted 1/(N p), defensive uniform share " +
+  const int batchSamples = g.pixels.samplesFor(pixels);
+  std::string px = "pixels: " + std::string(g.pixels.sampler->name()) + " (" + g.pixels.sampler->describe(g.pixels) + ")";
+  if (g.pixels.sampler->miniBatch())
+    px += "; a mini-batch of " + std::to_string(batchSamples) + " pixel samples per view, each traced, weighted 1/(N p), defensive uniform share " +
           num(g.pixels.defensive);
-  if (g.pixels.sampler == PixelSampler::LossGrad || g.pixels.sampler == PixelSampler::Adaptive)
+  if (g.pixels.sampler->usesStage1())
     px += "; stage-1 maps every " + std::to_string(g.pixels.refreshEvery) + " steps (one pixel in " + std::to_string(g.pixels.stage1Stride) +
-          " per axis, 1 sample, edge-aware upsampling" +
-          (g.pixels.sampler == PixelSampler::Adaptive ? ", " + std::to_string(g.pixels.levels) + " levels" : std::string()) + ")";
+          " per axis, 1 sample, edge-aware upsampling)";
   est.push_back(px);
   if (g.variance.enabled) {
     const auto& v = g.variance;
@@ -85,44 +86,18 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   }
   if (shapes) {
     const auto& b = g.boundary;
-    const std::string n = std::to_string(b.samplesFor(s.width, s.height));
-    bool delta = false, area = false, environment = false;
-    for (const Light& l : s.lights) {
-      delta = delta || l.isDelta();
-      area = area || l.kind == LightKind::Area;
-      environment = environment || l.isInfinite();
-    }
-    est.push_back(b.primary ? "boundary, primary (Eq. 9-11): " + n + " edge samples per view and step on silhouette and crease edges of moving "
-                                  "meshes, by clipped film length, hidden edge points skipped; both sides traced with the interior estimator; box pixel "
-                                  "filter, so no pixel-boundary term"
-                            : std::string("boundary, primary: off (ablation)"));
-    if (!b.secondary)
-      est.push_back("boundary, secondary (shadow borders): off (ablation)");
-    else {
-      if (delta)
-        est.push_back("boundary, secondary, point/spot lights: " + n +
-                      " samples per view and step on occluder silhouette edges seen from each light, that light's jump evaluated directly");
-      if (area && b.areaSampling == BoundaryOptions::AreaSampling::LightPoints)
-        est.push_back("boundary, secondary, area lights (Eq. 21-26): " + n + " samples per view and step over the silhouette edges of " +
-                      std::to_string(b.lightPoints) + " light points per pass, jump evaluated directly");
-      else if (area) {
-        const bool reuse = g.method == GradientMethod::Restir && !g.forwardOnly;
-        const std::string light = g.method == GradientMethod::Pt ? std::string("one light sample")
-                                                                 : "streaming RIS over " + std::to_string(g.restir.candidates) + " light samples";
-        est.push_back("boundary, secondary, area lights (multi-directional, Eq. 21-26): " + n +
-                      " samples per view and step, an edge point first, then the light point by " + light +
-                      (reuse ? std::string("; an edge reservoir kept per sample (Alg. 6; Alg. 8 keeps those no view of the batch sees)") +
-                                   (b.edgeNeighbours > 0 ? ", each sample merging " + std::to_string(b.edgeNeighbours) +
-                                                               " kd-tree neighbour(s) among the previous step's"
-                                                         : std::string()) +
-                                   (b.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
-                             : std::string("; edges by length")) +
-                      "; jump evaluated directly");
-      }
-      if (environment)
-        est.push_back("boundary, secondary, environment lights: " + n + " samples per view and step over the silhouette edges of " +
-                      std::to_string(b.lightPoints) + " directions per pass drawn by the environment's sampling, jump evaluated directly");
-    }
+    size_t maxShardViews = 0;
+    for (const auto& sh : p.shards) maxShardViews = std::max(maxShardViews, sh.size());
+    const BoundaryPlanInput input{s, g, maxShardViews};
+    if (!b.primary) est.push_back("boundary, primary: off (ablation)");
+    if (!b.secondary) est.push_back("boundary, secondary (shadow borders): off (ablation)");
+    for (const BoundaryTermKind* term : boundaryTermsFor(s, p.params, g)) est.push_back(term->describe(input));
+    const std::vector<std::string> unsampled = unsampledDiscontinuities(s, p.params);
+    if (unsampled.empty())
+      est.push_back("discontinuities not sampled: none found (no moving shape touches another surface or itself where a camera sees it, in the scene as given, "
+                    "and no spot cone is hard; contact curves and hard cone borders would not be sampled)");
+    for (const std::string& u : unsampled)
+      est.push_back("BIASED (boundary.allow_unsampled_discontinuities): " + u + "; no boundary term samples it");
     if (g.method == GradientMethod::Restir)
       est.push_back(b.multiViewShortcut
                         ? "reused samples' support tested in the current geometry (multi-view shortcut, §3.2: biased while geometry moves)"
@@ -138,7 +113,7 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
     out << "  " << e << "\n";
     plan.add_estimators(e);
   }
-  out << "  loss " << lossName(g.loss) << ", optimiser " << (p.optimizer == OptimizerKind::Adam ? "adam" : "sgd")
+  out << "  loss " << lossName(g.loss) << ", optimiser " << optimizerKindName(p.optimizer)
       << (p.schedule.halfLifeSteps > 0 ? " (the t-th update at learning_rate * h / (h + t), h = " + num(p.schedule.halfLifeSteps) + ")"
                                        : std::string(" (constant learning rates)"))
       << ", " << p.steps << " steps, " << p.viewsPerStep << " view(s) per step\n";
@@ -149,7 +124,7 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   size_t maxShard = 0;
   for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());
   // A mini-batch traces each of its N draws (a pixel drawn twice, twice); stage 1 comes on top.
-  const double pixelSamples = g.pixels.sampler == PixelSampler::All ? double(pixels) : double(batchSamples);
+  const double pixelSamples = g.pixels.sampler->miniBatch() ? double(batchSamples) : double(pixels);
   const double paths = double(p.viewsPerStep) * pixelSamples * double(g.sppPrimal + g.sppGradient + (g.variance.enabled ? g.variance.spp : 0));
   out << "work: " << p.shards.size() << " shard(s) of views (at most " << maxShard << " per shard), " << num(paths / 1e6)
       << " M camera paths per step\n";

@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "core/diff/gradient_engine.h"
+#include "core/diff/gradient_job_check.h"
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/render/renderer.h"
@@ -124,18 +125,16 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   // The scene's own values (the default start) may lie outside the default bounds (a black texel
   // under the positive floor): start inside them.
   p.params.clampToBounds(p.initial);
-  switch (o.method()) {
-    case v1::METHOD_PT: p.gradient.method = GradientMethod::Pt; break;
-    case v1::METHOD_RIS: p.gradient.method = GradientMethod::Ris; break;
-    default: p.gradient.method = GradientMethod::Restir; break;
-  }
+  // The gradient's options, each family's parsed beside its code (interior estimators, pixel
+  // samplers, the variance pass, boundary terms).
+  p.gradient = parseGradientOptions(o, p.scene->width, p.scene->height);
+  if (job.render().max_depth() != 0 && job.render().max_depth() != p.gradient.maxDepth)
+    throw InputError("render.max_depth (" + std::to_string(job.render().max_depth()) + ") and optimization.max_depth (" +
+                     std::to_string(p.gradient.maxDepth) + (o.max_depth() == 0 ? ", the default" : "") +
+                     ") disagree: targets, gradients and final renders share one light transport, set by "
+                     "optimization.max_depth; remove render.max_depth or make the two equal");
   try {
-    p.gradient.loss = lossKindFromName(o.loss().empty() ? "l2" : o.loss());
-  } catch (const InputError& e) {
-    fail("loss", e.what());
-  }
-  try {
-    p.optimizer = optimizerKindFromName(o.optimizer().empty() ? "adam" : o.optimizer());
+    p.optimizer = o.optimizer().empty() ? p.optimizer : optimizerKindFromName(o.optimizer());
   } catch (const InputError& e) {
     fail("optimizer", e.what());
   }
@@ -148,54 +147,14 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   };
   if (o.has_steps() && (o.steps() < 1 || o.steps() > 1000000))
     fail("steps", "must be in 1..1000000 (got " + std::to_string(o.steps()) + ")");
-  p.steps = o.has_steps() ? o.steps() : 100;
-  p.gradient.sppPrimal = positive("spp_primal", o.spp_primal(), 1, 4096);
-  p.gradient.sppGradient = positive("spp_gradient", o.spp_gradient(), 1, 4096);
-  p.gradient.restir.candidates = positive("ris_candidates", o.ris_candidates(), 8, 4096);
-  p.gradient.restir.visibilityInTarget = !o.ris_target_without_visibility();
-  const auto& r = o.restir();
-  p.gradient.restir.neighbours = positive("restir.neighbours", r.neighbours(), 1, 32);
-  if (r.radius_pixels() < 0 || r.radius_pixels() > 1000) fail("restir.radius_pixels", "must be in (0, 1000]");
-  p.gradient.radiusPixels = r.radius_pixels() > 0 ? float(r.radius_pixels()) : 3.f;
-  if (r.normal_threshold() < -1 || r.normal_threshold() > 1) fail("restir.normal_threshold", "must be in [-1, 1]");
-  p.gradient.restir.normalDot = r.normal_threshold() != 0 ? float(r.normal_threshold()) : 0.9f;
-  if (r.m_cap() < 0 || !std::isfinite(r.m_cap())) fail("restir.m_cap", "must be a positive number");
-  // While parameters change, old reservoirs go stale and a lucky high-weight sample can dominate
-  // its neighbours for many steps; a short memory and one neighbour fix both. Measured
-  // on oxalis over 150 Adam steps: cap 160 / 4 neighbours 13 loss spikes, parameter RMSE 0.098;
-  // cap 32 / 2: 3 spikes, 0.031; cap 16 / 1: 2 spikes, 0.027; cap 8 / 1: 0 spikes, 0.025.
-  p.gradient.restir.mCap = r.m_cap() > 0 ? float(r.m_cap()) : 2.f * float(p.gradient.restir.candidates);
-  if (r.burn_in() < 0 || r.burn_in() > 10000) fail("restir.burn_in", "must be in 0..10000");
-  p.burnIn = p.gradient.method == GradientMethod::Restir ? r.burn_in() : 0;
-  p.gradient.forwardOnly = r.forward_only();
-  p.gradient.preserveOccluded = !r.discard_occluded();
-  if (o.max_depth() < 0 || o.max_depth() > 64) fail("max_depth", "must be in 1..64 (got " + std::to_string(o.max_depth()) + ")");
-  p.gradient.maxDepth = std::max(1, o.max_depth());
-  if (job.render().max_depth() != 0 && job.render().max_depth() != p.gradient.maxDepth)
-    throw InputError("render.max_depth (" + std::to_string(job.render().max_depth()) + ") and optimization.max_depth (" +
-                     std::to_string(p.gradient.maxDepth) + (o.max_depth() == 0 ? ", the default" : "") +
-                     ") disagree: targets, gradients and final renders share one light transport, set by "
-                     "optimization.max_depth; remove render.max_depth or make the two equal");
-  if (p.gradient.maxDepth > 1 && p.gradient.method != GradientMethod::Pt)
-    fail("max_depth", "paths longer than direct illumination are differentiated by path replay with NEE + MIS at every vertex: set method METHOD_PT");
-  try {
-    p.gradient.pixels.sampler = pixelSamplerFromName(o.pixel_sampler().empty() ? "all" : o.pixel_sampler());
-  } catch (const InputError& e) {
-    fail("pixel_sampler", e.what());
-  }
-  const int filmPixels = p.scene->width * p.scene->height;
-  if (o.pixel_samples() < 0 || o.pixel_samples() > 16 * filmPixels)
-    fail("pixel_samples", "must be in 1.." + std::to_string(16 * filmPixels) + " (got " + std::to_string(o.pixel_samples()) + ")");
-  p.gradient.pixels.samplesPerView = o.pixel_samples();
-  if (!(o.pixel_defensive() >= 0 && o.pixel_defensive() <= 1))
-    fail("pixel_defensive", "must be in (0, 1]: every pixel needs a probability above zero");
-  p.gradient.pixels.defensive = o.pixel_defensive() > 0 ? float(o.pixel_defensive()) : 0.2f;
-  p.gradient.pixels.refreshEvery = positive("pixel_refresh", o.pixel_refresh(), 20, 100000);
+  p.steps = o.has_steps() ? o.steps() : p.steps;
+  if (o.restir().burn_in() < 0 || o.restir().burn_in() > 10000) fail("restir.burn_in", "must be in 0..10000");
+  p.burnIn = p.gradient.method == GradientMethod::Restir ? o.restir().burn_in() : 0;
   int views = int(p.scene->cameras.size());
   if (o.views_per_step() < 0 || o.views_per_step() > views)
     fail("views_per_step", "must be in 1.." + std::to_string(views) + " (the scene has " + std::to_string(views) + " views)");
   p.viewsPerStep = o.views_per_step() == 0 ? views : o.views_per_step();
-  p.targetSpp = positive("target_spp", o.target_spp(), 256, 1 << 16);
+  p.targetSpp = positive("target_spp", o.target_spp(), p.targetSpp, 1 << 16);
   p.seed = o.seed();
   if (p.scene->width * p.scene->height <= 0) fail("scene", "empty film");
   if (o.shards() < 0 || o.shards() > views)
@@ -219,51 +178,8 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       p.givenTargets.push_back(std::move(im));
     }
   }
-  if (o.has_variance()) {
-    const auto& v = o.variance();
-    VarianceOptions& vo = p.gradient.variance;
-    vo.enabled = true;
-    if (v.has_weight() && !(std::isfinite(v.weight()) && v.weight() >= 0)) fail("variance.weight", "must be a finite number >= 0");
-    vo.weight = v.has_weight() ? v.weight() : 1.0;
-    if (!(std::isfinite(v.samples()) && v.samples() >= 0)) fail("variance.samples", "must be a positive number (K, samples per pixel)");
-    vo.samples = v.samples() > 0 ? v.samples() : 1.0;
-    if (v.estimator() != "" && v.estimator() != "unbiased" && v.estimator() != "detached")
-      fail("variance.estimator", "unknown estimator '" + v.estimator() + "' (use unbiased or detached)");
-    vo.detached = v.estimator() == "detached";
-    vo.spp = positive("variance.spp", v.spp(), 1, 4096);
-    if (v.cost_model() != "" && v.cost_model() != "none" && v.cost_model() != "depth")
-      fail("variance.cost_model", "unknown cost model '" + v.cost_model() + "' (use none or depth)");
-    vo.cost = v.cost_model() == "depth" ? VarianceCost::Depth : VarianceCost::None;
-    if (vo.cost == VarianceCost::Depth && v.samples() != 0)
-      fail("variance.samples", "has no meaning with cost_model depth: the loss is bias + weight * t * V (Eq. 33); leave samples unset");
-    if (p.gradient.method != GradientMethod::Pt)
-      fail("variance", "needs method METHOD_PT: RIS and ReSTIR resampling have no variance derivatives yet");
-    if (p.gradient.pixels.sampler != PixelSampler::All && p.gradient.pixels.sampler != PixelSampler::Uniform)
-      fail("variance", "works with pixel_sampler all or uniform only");
-  }
-  if (o.has_boundary()) {
-    const auto& b = o.boundary();
-    if (b.samples() < 0 || b.samples() > (1 << 24)) fail("boundary.samples", "must be in 1..16777216 (0: the default)");
-    if (b.light_points() < 0 || b.light_points() > 4096) fail("boundary.light_points", "must be in 1..4096 (0: the default 16)");
-    BoundaryOptions& bo = p.gradient.boundary;
-    bo.samples = b.samples();
-    bo.lightPoints = b.light_points() > 0 ? b.light_points() : 16;
-    bo.primary = !b.has_primary() || b.primary();
-    bo.secondary = !b.has_secondary() || b.secondary();
-    bo.multiViewShortcut = b.multi_view_shortcut();
-    bo.areaSampling = b.area_sampling() == v1::AREA_SAMPLING_LIGHT_POINTS ? BoundaryOptions::AreaSampling::LightPoints
-                                                                         : BoundaryOptions::AreaSampling::EdgeFirst;
-    bo.edgeImportance = !b.has_edge_importance() || b.edge_importance();
-    if (b.edge_neighbours() < 0 || b.edge_neighbours() > 8) fail("boundary.edge_neighbours", "must be in 0..8 (0, the default: none)");
-    bo.edgeNeighbours = b.edge_neighbours();
-  }
-  try {
-    checkShapeJob(*p.scene, p.params, p.gradient);
-  } catch (const InputError& e) {
-    fail("parameters", e.what());
-  }
-  if (p.params.hasSamplingParameters() && p.gradient.method != GradientMethod::Pt)
-    fail("parameters", "sampling parameters (sampling/...) need method METHOD_PT");
+  // Combinations the gradients cannot deliver, now that the scene, parameters and options stand.
+  validateGradientJob(*p.scene, p.params, p.gradient);
   if (o.target_masks_size() > 0) {
     if (o.targets_size() == 0) fail("target_masks", "masks need targets (rendered targets have nothing to mask)");
     if (o.target_masks_size() != o.targets_size())

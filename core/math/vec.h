@@ -75,49 +75,6 @@ struct Frame {
   Vec3 toWorld(Vec3 v) const { return s * v.x + t * v.y + n * v.z; }
 };
 
-// Row-major 3x4 affine transform.
-struct Affine {
-  float m[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
-  Vec3 point(Vec3 p) const {
-    return {m[0][0] * p.x + m[0][1] * p.y + m[0][2] * p.z + m[0][3],
-            m[1][0] * p.x + m[1][1] * p.y + m[1][2] * p.z + m[1][3],
-            m[2][0] * p.x + m[2][1] * p.y + m[2][2] * p.z + m[2][3]};
-  }
-  Vec3 vector(Vec3 v) const {
-    return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z, m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
-            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
-  }
-  // Composition: (a * b).point(p) == a.point(b.point(p)).
-  friend Affine operator*(const Affine& a, const Affine& b) {
-    Affine r;
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 4; ++j) {
-        float s = (j == 3) ? a.m[i][3] : 0.f;
-        for (int k = 0; k < 3; ++k) s += a.m[i][k] * b.m[k][j];
-        r.m[i][j] = s;
-      }
-    }
-    return r;
-  }
-  static Affine scale(Vec3 s) {
-    Affine a;
-    a.m[0][0] = s.x; a.m[1][1] = s.y; a.m[2][2] = s.z;
-    return a;
-  }
-  static Affine translate(Vec3 t) {
-    Affine a;
-    a.m[0][3] = t.x; a.m[1][3] = t.y; a.m[2][3] = t.z;
-    return a;
-  }
-  static Affine rotate(int axis, float degrees) {
-    float r = degrees * kPi / 180.f, c = std::cos(r), s = std::sin(r);
-    Affine a;
-    int i = (axis + 1) % 3, j = (axis + 2) % 3;
-    a.m[i][i] = c; a.m[i][j] = -s; a.m[j][i] = s; a.m[j][j] = c;
-    return a;
-  }
-};
-
 template <typename T>
 inline T clamp(T v, T lo, T hi) { return std::min(std::max(v, lo), hi); }
 inline float safeSqrt(float v) { return std::sqrt(std::max(v, 0.f)); }

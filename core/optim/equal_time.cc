@@ -3,7 +3,9 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/diff/gradient_stats.h"
 #include "core/error.h"
+#include "core/stopwatch.h"
 
 namespace invr {
 
@@ -17,24 +19,22 @@ double tailParameterError(const std::vector<EqualTimePoint>& history, double bud
   return n ? std::sqrt(sum / double(n)) : history.back().parameterError;
 }
 
-void writeEqualTimeCsvRow(std::ostream& out, const std::string& method, const EqualTimePoint& pt) {
-  auto cell = [&](double v) {
-    if (std::isfinite(v)) out << v;
-  };
-  out << method << "," << pt.step << "," << pt.seconds << ",";
-  cell(pt.loss);
-  out << ",";
-  cell(pt.parameterError);
-  out << ",";
-  cell(pt.imageError);
-  out << "\n";
+ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& pt) {
+  ConvergenceRow r;
+  r.method = method;
+  r.step = uint64_t(pt.step);
+  r.seconds = pt.seconds;
+  r.loss = pt.loss;
+  r.paramError = pt.parameterError;
+  r.imageError = pt.imageError;
+  r.stats = pt.stats;
+  return r;
 }
 
 EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const GradientOptions& options,
                           const EqualTimeOptions& budget, ImageErrorMeter* meter,
                           const std::function<void(const EqualTimePoint&)>& onPoint) {
   if (!(budget.seconds > 0)) throw InputError("equal-time run: the budget must be positive seconds");
-  using Clock = std::chrono::steady_clock;
   LocalEvaluator evaluate(p, targets, options);
   // The burn-in (ReSTIR's render-only steps) is part of the method's cost; the problem's own
   // burn-in length does not apply to other methods.
@@ -56,22 +56,23 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
   int nextCheckpoint = 1;
   while (loop.burningIn() || used < budget.seconds) {
     std::optional<GradientResult> g;
-    auto t0 = Clock::now();
+    Stopwatch clock;
     try {
       g = loop.next(std::ref(evaluate));
     } catch (const InputError& diverged) {
       out.failure = diverged.what();  // the loop kept the last good parameters
       break;
     }
-    used += std::chrono::duration<double>(Clock::now() - t0).count();
+    used += clock.seconds();
     if (!g) continue;  // burn-in
     out.theta = loop.state().theta;
-    out.nonFiniteSamples += g->stats.nonFiniteSamples;
-    out.secondsStage1 += g->stats.secondsStage1;
+    out.nonFiniteSamples += droppedSamples(g->stats);
+    out.secondsStage1 += g->stats.seconds_stage1();
     EqualTimePoint pt;
     pt.step = int(loop.state().step);
     pt.seconds = used;
-    pt.loss = g->stats.loss;
+    pt.loss = g->stats.loss();
+    pt.stats = g->stats;
     pt.parameterError = p.groundTruthKnown() ? parameterError(p, out.theta) : std::numeric_limits<double>::quiet_NaN();
     bool last = used >= budget.seconds;
     if (meter && (last || used >= budget.seconds * nextCheckpoint / checkpoints)) {

@@ -6,11 +6,12 @@
 
 #include <functional>
 #include <limits>
-#include <ostream>
+#include <optional>
 #include <string>
 
 #include "core/optim/image_error.h"
 #include "core/optim/local_run.h"
+#include "core/optim/results_io.h"
 
 namespace invr {
 
@@ -25,6 +26,7 @@ struct EqualTimePoint {
   double loss = std::numeric_limits<double>::quiet_NaN();  // NaN at step 0
   double parameterError = 0;
   double imageError = std::numeric_limits<double>::quiet_NaN();  // NaN between checkpoints
+  std::optional<invr::v1::GradientStats> stats;  // the step's (none at step 0)
 };
 
 struct EqualTimeRun {
@@ -37,10 +39,8 @@ struct EqualTimeRun {
   std::string failure;
 };
 
-// CSV of equal-time runs: the convergence CSV's columns plus the image error (empty between
-// checkpoints; loss empty at step 0).
-inline constexpr const char* kEqualTimeCsvHeader = "method,step,seconds,loss,param_error,image_error";
-void writeEqualTimeCsvRow(std::ostream& out, const std::string& method, const EqualTimePoint& point);
+// The convergence CSV's row of a point (results_io.h).
+ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& point);
 
 // Where a run settled: the RMS parameter error over the last quarter of `budgetSeconds`. A run at
 // its noise floor keeps moving, so its final value is one draw from that floor. Falls back to the

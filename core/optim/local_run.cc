@@ -1,6 +1,7 @@
 #include "core/optim/local_run.h"
 
-#include <chrono>
+#include "core/diff/gradient_stats.h"
+#include "core/stopwatch.h"
 
 namespace invr {
 
@@ -11,16 +12,16 @@ LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&
   LoopState start;
   start.theta = p.initial;
   OptimizationLoop loop(p, std::move(start), p.burnIn, p.steps);
-  auto t0 = std::chrono::steady_clock::now();
+  Stopwatch clock;
   while (!loop.done()) {
     auto g = loop.next(std::ref(evaluate));
     if (!g) continue;  // burn-in
     StepReport rep;
     rep.step = loop.state().step;
-    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    rep.loss = g->stats.loss;
+    rep.seconds = clock.seconds();
+    rep.loss = g->stats.loss();
     rep.parameterError = parameterError(p, loop.state().theta);
-    rep.nonFinite = g->stats.nonFiniteSamples;
+    rep.nonFinite = droppedSamples(g->stats);
     rep.stats = g->stats;
     out.history.push_back(rep);
     if (onStep) onStep(rep);

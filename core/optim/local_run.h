@@ -15,7 +15,7 @@ struct StepReport {
   double loss = 0;         // unbiased (two independent renders)
   double parameterError = 0;
   uint64_t nonFinite = 0;
-  GradientStats stats;
+  invr::v1::GradientStats stats;
 };
 
 struct LocalRunResult {

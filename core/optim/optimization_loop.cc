@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "core/diff/gradient_stats.h"
 #include "core/error.h"
 
 namespace invr {
@@ -36,32 +37,7 @@ void accumulateShard(GradientResult& total, const GradientResult& shard) {
     throw std::logic_error("accumulateShard: a gradient of " + std::to_string(shard.gradient.size()) + " values added to one of " +
                            std::to_string(total.gradient.size()));
   for (size_t i = 0; i < shard.gradient.size(); ++i) total.gradient[i] += shard.gradient[i];
-  GradientStats& t = total.stats;
-  const GradientStats& s = shard.stats;
-  t.loss += s.loss;
-  t.biasTerm += s.biasTerm;
-  t.varianceTerm += s.varianceTerm;
-  t.cost += s.cost;
-  t.secondsVariance += s.secondsVariance;
-  t.drops += s.drops;
-  t.nonFiniteSamples += s.nonFiniteSamples;
-  t.secondsPrimal += s.secondsPrimal;
-  t.secondsDerivative += s.secondsDerivative;
-  t.secondsReservoirUpdate += s.secondsReservoirUpdate;
-  t.secondsStage1 += s.secondsStage1;
-  t.secondsBoundary += s.secondsBoundary;
-  t.boundaryEdges += s.boundaryEdges;
-  t.edgeReservoirs += s.edgeReservoirs;
-  t.edgeReservoirsPreserved += s.edgeReservoirsPreserved;
-  t.boundarySamples += s.boundarySamples;
-  t.pixelsTraced += s.pixelsTraced;
-  t.reservoirs += s.reservoirs;
-  t.reservoirsPreserved += s.reservoirsPreserved;
-  t.reservoirsCarried += s.reservoirsCarried;
-  t.kdTreesBuilt += s.kdTreesBuilt;
-  t.meanM = std::max(t.meanM, s.meanM);
-  t.meanNeighbours = std::max(t.meanNeighbours, s.meanNeighbours);
-  t.rays += s.rays;
+  addGradientStats(total.stats, shard.stats);
 }
 
 OptimizationLoop::OptimizationLoop(const Problem& problem, LoopState start, int burnIn, int steps)
@@ -82,11 +58,11 @@ std::optional<GradientResult> OptimizationLoop::next(const Evaluate& evaluate) {
     if (s) accumulateShard(sum, *s);
   if (sum.gradient.empty()) sum.gradient.assign(problem_.params.size(), 0.0);
   const uint64_t step = state_.step + 1;
-  checkDivergence(problem_, step, sum.stats.loss, state_.theta);
+  checkDivergence(problem_, step, sum.stats.loss(), state_.theta);
   std::vector<float> theta = state_.theta;
   OptimizerState opt = state_.optimizer;
   optimizerStep(problem_.optimizer, problem_.params, sum.gradient, theta, opt, problem_.schedule);
-  checkDivergence(problem_, step, sum.stats.loss, theta);
+  checkDivergence(problem_, step, sum.stats.loss(), theta);
   state_.theta = std::move(theta);
   state_.optimizer = std::move(opt);
   state_.step = step;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
@@ -105,6 +106,93 @@ std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir,
     files.push_back(file);
   }
   return files;
+}
+
+namespace {
+
+namespace pb = google::protobuf;
+
+std::string number(double v) {
+  if (!std::isfinite(v)) return "";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", v);
+  return b;
+}
+
+// Every scalar of `m` as (column, text), fields in declaration order, map entries by key in the
+// order they are stored (the writer keeps the first-seen order across rows).
+void flatten(const pb::Message& m, const std::string& prefix, std::vector<std::pair<std::string, std::string>>& out) {
+  const pb::Descriptor* d = m.GetDescriptor();
+  const pb::Reflection* r = m.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    const std::string name = prefix + f->name();
+    if (f->is_map()) {
+      std::vector<std::pair<std::string, const pb::Message*>> entries;
+      for (int k = 0; k < r->FieldSize(m, f); ++k) {
+        const pb::Message& e = r->GetRepeatedMessage(m, f, k);
+        entries.emplace_back(e.GetReflection()->GetString(e, f->message_type()->map_key()), &e);
+      }
+      std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      for (const auto& [key, e] : entries) {
+        const pb::FieldDescriptor* vf = f->message_type()->map_value();
+        if (vf->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE)
+          flatten(e->GetReflection()->GetMessage(*e, vf), name + "." + key + ".", out);
+        else
+          out.emplace_back(name + "." + key, std::to_string(e->GetReflection()->GetUInt64(*e, vf)));
+      }
+      continue;
+    }
+    switch (f->cpp_type()) {
+      case pb::FieldDescriptor::CPPTYPE_MESSAGE: flatten(r->GetMessage(m, f), name + ".", out); break;
+      case pb::FieldDescriptor::CPPTYPE_DOUBLE: out.emplace_back(name, number(r->GetDouble(m, f))); break;
+      case pb::FieldDescriptor::CPPTYPE_FLOAT: out.emplace_back(name, number(double(r->GetFloat(m, f)))); break;
+      case pb::FieldDescriptor::CPPTYPE_UINT64: out.emplace_back(name, std::to_string(r->GetUInt64(m, f))); break;
+      case pb::FieldDescriptor::CPPTYPE_UINT32: out.emplace_back(name, std::to_string(r->GetUInt32(m, f))); break;
+      case pb::FieldDescriptor::CPPTYPE_INT64: out.emplace_back(name, std::to_string(r->GetInt64(m, f))); break;
+      case pb::FieldDescriptor::CPPTYPE_INT32: out.emplace_back(name, std::to_string(r->GetInt32(m, f))); break;
+      default: break;  // no strings or lists in the statistics
+    }
+  }
+}
+
+std::string csvText(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+
+}  // namespace
+
+void ConvergenceCsv::write() const {
+  std::vector<std::string> columns;
+  std::map<std::string, size_t> index;
+  std::vector<std::vector<std::pair<std::string, std::string>>> cells(rows_.size());
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    if (!rows_[i].stats) continue;
+    invr::v1::GradientStats stats = *rows_[i].stats;
+    stats.clear_loss();  // the loss column
+    flatten(stats, "", cells[i]);
+    for (const auto& [c, v] : cells[i])
+      if (index.emplace(c, columns.size()).second) columns.push_back(c);
+  }
+  std::string text = "method,step,seconds,loss,param_error,image_error";
+  for (const std::string& c : columns) text += "," + c;
+  text += "\n";
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    const ConvergenceRow& r = rows_[i];
+    text += csvText(r.method) + "," + std::to_string(r.step) + "," + number(r.seconds) + "," + number(r.loss) + "," + number(r.paramError) + "," +
+            number(r.imageError);
+    std::vector<std::string> row(columns.size());
+    for (const auto& [c, v] : cells[i]) row[index[c]] = v;
+    for (const std::string& v : row) text += "," + v;
+    text += "\n";
+  }
+  std::ofstream out(path_);
+  if (!out) throw InputError("cannot write '" + path_.string() + "'");
+  out << text;
+  if (!out.flush()) throw InputError("cannot write '" + path_.string() + "'");
 }
 
 }  // namespace invr

@@ -1,12 +1,16 @@
 // Writing an optimisation's results: parameters as JSON (textures also as EXR images a person can
-// look at) and the convergence CSV. Shared by `invr optimize` and the server.
+// look at) and the convergence CSV. The one writer of both for `invr optimize`, the server's job
+// runner and `invr eval` (same files, columns and precision).
 #pragma once
 
 #include <filesystem>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/diff/parameters.h"
+#include "invr/v1/stats.pb.h"
 
 namespace invr {
 
@@ -22,6 +26,36 @@ class Scene;
 std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir, const ParameterRegistry& params, Scene& scene,
                                                const std::vector<float>& theta);
 
-inline constexpr const char* kConvergenceCsvHeader = "method,step,seconds,loss,param_error";
+// convergence.csv: one row per step (and eval's step 0), columns
+//   method, step, seconds, loss, param_error, image_error,
+// then every field of the step's GradientStats (but its loss: the loss column) by its proto path
+// (seconds_primal, rays.camera,
+// drops.primal, boundary.<term>.samples, boundary.<term>.counters.<name>, ...). A cell is empty
+// where a value was not measured (loss at step 0, image error between checkpoints, statistics at
+// step 0); numbers have 9 significant digits, counts are exact; param_error is -1 for jobs without
+// ground truth.
+struct ConvergenceRow {
+  std::string method;
+  uint64_t step = 0;
+  double seconds = 0;
+  double loss = std::numeric_limits<double>::quiet_NaN();
+  double paramError = std::numeric_limits<double>::quiet_NaN();
+  double imageError = std::numeric_limits<double>::quiet_NaN();
+  std::optional<invr::v1::GradientStats> stats;
+};
+
+class ConvergenceCsv {
+ public:
+  explicit ConvergenceCsv(std::filesystem::path path) : path_(std::move(path)) {}
+  void add(ConvergenceRow row) { rows_.push_back(std::move(row)); }
+  size_t rows() const { return rows_.size(); }
+  // (Re)writes the file with every row so far; the statistics' columns are the union over rows
+  // (map keys in the order first seen). Throws InputError when the file cannot be written.
+  void write() const;
+
+ private:
+  std::filesystem::path path_;
+  std::vector<ConvergenceRow> rows_;
+};
 
 }  // namespace invr

@@ -56,64 +56,6 @@ Affine3d aboutPivot(const M3& L, Vec3 pivot, Vec3 offset) {
 
 }  // namespace
 
-Vec3 Affine3d::point(Vec3 p) const {
-  return Vec3(float(m[0][0] * p.x + m[0][1] * p.y + m[0][2] * p.z + m[0][3]), float(m[1][0] * p.x + m[1][1] * p.y + m[1][2] * p.z + m[1][3]),
-              float(m[2][0] * p.x + m[2][1] * p.y + m[2][2] * p.z + m[2][3]));
-}
-
-Vec3 Affine3d::vector(Vec3 v) const {
-  return Vec3(float(m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z), float(m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z),
-              float(m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z));
-}
-
-Vec3 Affine3d::transposedVector(Vec3 v) const {
-  return Vec3(float(m[0][0] * v.x + m[1][0] * v.y + m[2][0] * v.z), float(m[0][1] * v.x + m[1][1] * v.y + m[2][1] * v.z),
-              float(m[0][2] * v.x + m[1][2] * v.y + m[2][2] * v.z));
-}
-
-Affine3d operator*(const Affine3d& a, const Affine3d& b) {
-  Affine3d r;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 4; ++j) {
-      double s = j == 3 ? a.m[i][3] : 0.0;
-      for (int k = 0; k < 3; ++k) s += a.m[i][k] * b.m[k][j];
-      r.m[i][j] = s;
-    }
-  return r;
-}
-
-Affine3d Affine3d::inverse() const {
-  const auto& a = m;
-  double c00 = a[1][1] * a[2][2] - a[1][2] * a[2][1], c01 = a[1][2] * a[2][0] - a[1][0] * a[2][2], c02 = a[1][0] * a[2][1] - a[1][1] * a[2][0];
-  double det = a[0][0] * c00 + a[0][1] * c01 + a[0][2] * c02;
-  double inv = 1.0 / det;
-  Affine3d r;
-  r.m[0][0] = c00 * inv;
-  r.m[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) * inv;
-  r.m[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) * inv;
-  r.m[1][0] = c01 * inv;
-  r.m[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) * inv;
-  r.m[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) * inv;
-  r.m[2][0] = c02 * inv;
-  r.m[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) * inv;
-  r.m[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) * inv;
-  for (int i = 0; i < 3; ++i) r.m[i][3] = -(r.m[i][0] * a[0][3] + r.m[i][1] * a[1][3] + r.m[i][2] * a[2][3]);
-  return r;
-}
-
-Affine3d Affine3d::linearPart() const {
-  Affine3d r = *this;
-  for (auto& row : r.m) row[3] = 0.0;
-  return r;
-}
-
-Affine3d Affine3d::zero() {
-  Affine3d r;
-  for (auto& row : r.m)
-    for (double& v : row) v = 0.0;
-  return r;
-}
-
 Affine3d motionMap(const RigidMotion& motion, Vec3 pivot) {
   M3 L = rotation(motion.rotationDegrees);
   for (auto& row : L)

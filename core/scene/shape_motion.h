@@ -14,22 +14,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/math/vec.h"
+#include "core/math/affine.h"
 
 namespace invr {
-
-// A 3x4 affine map in double (derivatives of motions are not motions: no unit last row implied).
-struct Affine3d {
-  double m[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
-  Vec3 point(Vec3 p) const;
-  Vec3 vector(Vec3 v) const;
-  // The transpose of the linear part applied to v.
-  Vec3 transposedVector(Vec3 v) const;
-  friend Affine3d operator*(const Affine3d& a, const Affine3d& b);  // (a * b)(p) = a(b(p))
-  Affine3d inverse() const;  // of an invertible map
-  Affine3d linearPart() const;  // the same map with no translation
-  static Affine3d zero();
-};
 
 struct RigidMotion {
   static constexpr int kComponents = 7;  // translation x, y, z; rotation x, y, z (degrees); scale

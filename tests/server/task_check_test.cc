@@ -28,7 +28,7 @@ v1::TaskResult answer(const v1::Task& t, int gradientValues) {
   r.set_job_id(t.job_id());
   r.set_shard(t.shard());
   for (int k = 0; k < gradientValues; ++k) r.add_gradient(0.5);
-  r.set_loss(1.0);
+  r.mutable_stats()->set_loss(1.0);
   return r;
 }
 
@@ -68,11 +68,22 @@ TEST(TaskCheck, IdentityMustMatchTheTask) {
 TEST(TaskCheck, NegativeOrNonFiniteTimingsAreMalformed) {
   v1::Task t = gradientTask();
   v1::TaskResult r = answer(t, 12);
-  r.set_seconds_primal(-1);
-  EXPECT_NE(checkTaskResult(t, r, kShape), "");
+  r.mutable_stats()->set_seconds_primal(-1);
+  EXPECT_EQ(checkTaskResult(t, r, kShape), "statistic 'seconds_primal' is negative or not finite");
   r = answer(t, 12);
   r.set_seconds_session(std::nan(""));
   EXPECT_NE(checkTaskResult(t, r, kShape), "");
+  // Inside the statistics' maps too, and the maps stay small.
+  r = answer(t, 12);
+  (*r.mutable_stats()->mutable_boundary())["primary"].set_seconds(std::nan(""));
+  EXPECT_EQ(checkTaskResult(t, r, kShape), "statistic 'seconds' is negative or not finite");
+  r = answer(t, 12);
+  for (int k = 0; k < 65; ++k) (*r.mutable_stats()->mutable_boundary())["term" + std::to_string(k)].set_samples(1);
+  EXPECT_NE(checkTaskResult(t, r, kShape).find("limit 64"), std::string::npos);
+  // The loss may be anything: divergence shows there, and the step loop names it.
+  r = answer(t, 12);
+  r.mutable_stats()->set_loss(std::nan(""));
+  EXPECT_EQ(checkTaskResult(t, r, kShape), "");
 }
 
 TEST(TaskCheck, FinalRendersMustHaveTheFilmSizeAndTheirPixels) {

@@ -9,9 +9,12 @@
 #include <cstdio>
 #include <ctime>
 #include <cstdint>
+#include <condition_variable>
 #include <functional>
 #include <map>
 #include <mutex>
+
+#include <grpcpp/generic/generic_stub.h>
 
 #include "core/job/problem.h"
 #include "core/scene/zoo.h"
@@ -230,6 +233,86 @@ class ScriptedWorker {
   grpc::ClientContext ctx_;
   std::thread thread_;
 };
+
+// A raw unary call: `bytes` sent as the request of `method`, the status that answers it.
+grpc::Status rawCall(const std::string& address, const std::string& method, const std::string& bytes) {
+  grpc::GenericStub generic(wire::channel(address));
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + 20s);
+  grpc::Slice slice(bytes.data(), bytes.size());
+  grpc::ByteBuffer req(&slice, 1), resp;
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status st;
+  generic.UnaryCall(&ctx, method, grpc::StubOptions(), &req, &resp, [&](grpc::Status s) {
+    std::lock_guard<std::mutex> lk(m);
+    st = s;
+    done = true;
+    cv.notify_all();
+  });
+  std::unique_lock<std::mutex> lk(m);
+  cv.wait_for(lk, 25s, [&] { return done; });
+  return done ? st : grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "no answer");
+}
+
+// Bytes that are not the method's request message answer INVALID_ARGUMENT naming the message (gRPC's
+// callback API would say UNIMPLEMENTED, as if the method did not exist), and the server goes on.
+TEST(Robustness, MalformedRequestBytesAreInvalidArgumentNotUnimplemented) {
+  TempDir tmp;
+  Cluster c(tmp.path);
+  c.startServer();
+  c.startWorker(2);
+  // Field 2 (spec) declared 200 bytes long, 3 present; a wire type that does not exist.
+  const std::string truncatedSubmit = std::string("\x12\xc8\x01\x0a\x01x", 6);
+  const std::string badWireType = std::string("\x0f\x01", 2);
+  // Field 1 (job_id) declared 5 bytes long, 1 present.
+  const std::string truncatedGet = std::string("\x0a\x05j", 3);
+  const std::pair<const char*, std::string> calls[] = {
+      {"/invr.v1.InvrService/SubmitJob", truncatedSubmit}, {"/invr.v1.InvrService/SubmitJob", badWireType},
+      {"/invr.v1.InvrService/GetJob", truncatedGet},       {"/invr.v1.InvrService/CancelJob", truncatedGet},
+      {"/invr.v1.InvrService/PlanJob", truncatedSubmit},   {"/invr.v1.InvrService/ListJobs", badWireType},
+      {"/invr.v1.InvrService/ListWorkers", badWireType}};
+  for (const auto& [method, bytes] : calls) {
+    grpc::Status st = rawCall(c.address(), method, bytes);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method << ": " << st.error_message();
+    EXPECT_NE(st.error_message().find("is not a valid invr.v1."), std::string::npos) << method << ": " << st.error_message();
+  }
+  // A well-formed raw request still works (an unknown job is NOT_FOUND, not a parse error).
+  v1::GetJobRequest get;
+  get.set_job_id("job-999999");
+  EXPECT_EQ(rawCall(c.address(), "/invr.v1.InvrService/GetJob", get.SerializeAsString()).error_code(), grpc::StatusCode::NOT_FOUND);
+  // Streams: a malformed WatchJob or FetchResult request ends its stream with INVALID_ARGUMENT.
+  for (const char* method : {"/invr.v1.InvrService/WatchJob", "/invr.v1.InvrService/FetchResult"}) {
+    grpc::GenericStub generic(wire::channel(c.address()));
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + 20s);
+    grpc::CompletionQueue cq;
+    grpc::Slice slice(truncatedGet.data(), truncatedGet.size());
+    grpc::ByteBuffer req(&slice, 1);
+    auto call = generic.PrepareCall(&ctx, method, &cq);
+    void* tag = nullptr;
+    bool ok = false;
+    call->StartCall(reinterpret_cast<void*>(1));
+    cq.Next(&tag, &ok);
+    call->Write(req, reinterpret_cast<void*>(2));
+    cq.Next(&tag, &ok);
+    call->WritesDone(reinterpret_cast<void*>(3));
+    cq.Next(&tag, &ok);
+    grpc::ByteBuffer resp;
+    call->Read(&resp, reinterpret_cast<void*>(4));
+    cq.Next(&tag, &ok);
+    EXPECT_FALSE(ok) << method << ": a malformed request got a message back";
+    grpc::Status st;
+    call->Finish(&st, reinterpret_cast<void*>(5));
+    cq.Next(&tag, &ok);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method << ": " << st.error_message();
+    cq.Shutdown();
+    while (cq.Next(&tag, &ok)) {
+    }
+  }
+  expectHealthy(c);
+}
 
 TEST(Robustness, AWorkerAnsweringWithTheWrongGradientLengthFailsOnlyItsTask) {
   TempDir tmp;

@@ -171,11 +171,12 @@ TEST(Service, VarianceJobsMatchInProcessWithAnyWorkerCount) {
     for (const auto& e : evs) {
       if (!e.has_step()) continue;
       ++steps;
-      const auto& sp = e.step();
+      const auto& sp = e.step().stats();
+      EXPECT_EQ(e.step().loss(), sp.loss());
       EXPECT_GT(sp.variance_term(), 0.0);
       EXPECT_GT(sp.cost(), 1.0) << "a camera ray and a shadow ray at least";
       EXPECT_NEAR(sp.loss(), sp.bias_term() + sp.variance_term(), 1e-9 * (1 + std::abs(sp.loss())));
-      EXPECT_GT(sp.variance_seconds(), 0.0);
+      EXPECT_GT(sp.seconds_variance(), 0.0);
     }
     EXPECT_EQ(steps, 3);
     const auto& results = run.status.results();

@@ -48,7 +48,7 @@ struct CardCase {
     for (auto& v : adjoint.data()) v = 1.f;
     GradientScratchPool scratch(reg.size());
     std::vector<double> g(reg.size(), 0.0);
-    DeltaShadowBoundary(*scene, reg, topology).run(*estimator, 0, adjoint, samples, seed, 0, scratch, g);
+    DeltaShadowBoundary(*scene, reg, topology).run({0, adjoint, *estimator, samples, seed, 0, scratch, g});
     return g;
   }
 };

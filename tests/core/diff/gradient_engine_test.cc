@@ -16,6 +16,7 @@
 
 #include "core/diff/diff_scenes.h"
 #include "core/diff/fd_reference.h"
+#include "core/diff/gradient_stats.h"
 #include <tbb/task_arena.h>
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
@@ -190,14 +191,14 @@ TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {
     GradientRequest r;
     r.views = {0};
     auto first = engine.evaluate(r, s);
-    EXPECT_EQ(first.stats.meanNeighbours, 0.0);  // nothing to reuse yet
+    EXPECT_EQ(meanNeighbours(first.stats), 0.0);  // nothing to reuse yet
     r.step = 1;
     auto second = engine.evaluate(r, s);
-    EXPECT_GT(second.stats.meanNeighbours, 0.9 * o.restir.neighbours) << pixelNeighbours;  // almost every point finds one
-    EXPECT_GT(second.stats.meanM, double(o.restir.candidates) * 1.5) << pixelNeighbours;    // and carries its confidence
-    EXPECT_GT(second.stats.reservoirs, 0u);
+    EXPECT_GT(meanNeighbours(second.stats), 0.9 * o.restir.neighbours) << pixelNeighbours;  // almost every point finds one
+    EXPECT_GT(meanM(second.stats), double(o.restir.candidates) * 1.5) << pixelNeighbours;    // and carries its confidence
+    EXPECT_GT(second.stats.reservoirs(), 0u);
     // One view, static scene: last step's pixels answer every search and no kd-tree is built.
-    EXPECT_EQ(second.stats.kdTreesBuilt, pixelNeighbours ? 0 : 2);
+    EXPECT_EQ(second.stats.kd_trees_built(), pixelNeighbours ? 0u : 2u);
   }
 }
 
@@ -212,7 +213,7 @@ TEST(GradientEngine, MultiViewBatchesPreserveTheReservoirsNoViewCanSee) {
   o.method = GradientMethod::Restir;
   o.sppPrimal = o.sppGradient = 1;
   o.maxDepth = 1;
-  o.pixels.sampler = PixelSampler::All;
+  o.pixels.sampler = &pixelSampler("all");
   // Any image will do as a target: only the reservoirs are checked.
   GradientEngine engine(*p.scene, p.params, std::vector<Image>(scene.cameras.size(), Image(scene.width, scene.height, 3)), o);
   auto step = [&](EngineSession& s, uint64_t k, std::vector<int> views) {
@@ -226,7 +227,7 @@ TEST(GradientEngine, MultiViewBatchesPreserveTheReservoirsNoViewCanSee) {
   step(s, 0, {0});
   const std::vector<StoredReservoir> fromView0 = s.primal.items();
   ASSERT_GT(fromView0.size(), 1000u);
-  GradientStats st = step(s, 1, {4});
+  invr::v1::GradientStats st = step(s, 1, {4});
 
   const Camera& cam = scene.cameras[4];
   auto seenBy4 = [&](const StoredReservoir& r) {
@@ -251,7 +252,7 @@ TEST(GradientEngine, MultiViewBatchesPreserveTheReservoirsNoViewCanSee) {
   for (const auto& r : fromView0) expected += seenBy4(r) ? 0 : 1;
   EXPECT_TRUE(ordered);
   // Both chains preserve; the primal one is checked point by point.
-  EXPECT_GT(st.reservoirsPreserved, kept);
+  EXPECT_GT(st.reservoirs_preserved(), kept);
   EXPECT_GT(kept, fromView0.size() / 10);               // camera 4 sees part of what camera 0 saw,
   EXPECT_LT(kept, fromView0.size() - fromView0.size() / 10);  // and misses part of it
   // The two visibility tests may disagree at grazing points on the silhouette only.
@@ -260,7 +261,7 @@ TEST(GradientEngine, MultiViewBatchesPreserveTheReservoirsNoViewCanSee) {
   // A batch that holds view 0 again replaces every reservoir view 0 left (unmoved geometry).
   EngineSession again;
   step(again, 0, {0});
-  EXPECT_EQ(step(again, 1, {4, 0}).reservoirsPreserved, 0u);
+  EXPECT_EQ(step(again, 1, {4, 0}).reservoirs_preserved(), 0u);
 }
 
 // Alg. 8 with pixel mini-batches: a step that traces a quarter of the pixels replaces the
@@ -271,7 +272,7 @@ TEST(GradientEngine, PixelMiniBatchesCarryTheReservoirsOfUndrawnPixels) {
   Fixture& f = fixture();
   GradientOptions o;
   o.method = GradientMethod::Restir;
-  o.pixels.sampler = PixelSampler::Uniform;
+  o.pixels.sampler = &pixelSampler("uniform");
   const int P = f.scene->width * f.scene->height;
   o.pixels.samplesPerView = P / 4;
   GradientEngine engine(*f.scene, f.reg, {f.target}, o);
@@ -285,7 +286,7 @@ TEST(GradientEngine, PixelMiniBatchesCarryTheReservoirsOfUndrawnPixels) {
   const std::vector<StoredReservoir> old = s.primal.items();
   ASSERT_GT(old.size(), size_t(P / 8));
   r.step = 1;
-  GradientStats st = engine.evaluate(r, s).stats;
+  invr::v1::GradientStats st = engine.evaluate(r, s).stats;
   // The batch step 1 drew (the engine's own stream for it).
   PixelMap uniform;
   uniform.setProbabilities(std::vector<float>(size_t(P), 1.f / float(P)));
@@ -305,10 +306,10 @@ TEST(GradientEngine, PixelMiniBatchesCarryTheReservoirsOfUndrawnPixels) {
         break;
       }
   std::printf("old %zu, kept %zu, expected %zu (undrawn pixels), carried by both chains %zu\n", old.size(), kept, expected,
-              st.reservoirsCarried);
+              st.reservoirs_carried());
   EXPECT_EQ(kept, expected);
   EXPECT_GT(double(kept), 0.6 * double(old.size()));  // about (1 - 1/P)^(P/4) = 78 % of the pixels go undrawn
-  EXPECT_GE(st.reservoirsCarried, kept);
+  EXPECT_GE(st.reservoirs_carried(), kept);
 }
 
 TEST(GradientEngine, BadRequestsAreInputErrors) {
@@ -352,8 +353,8 @@ TEST(GradientEngine, NonFiniteSamplesAreCountedAndDropped) {
       r.views = {0};
       r.seed = 9;
       GradientResult g = engine.evaluate(r, session);
-      EXPECT_GT(g.stats.nonFiniteSamples, 0u) << gradientMethodName(m) << " depth " << depth;
-      EXPECT_TRUE(std::isfinite(g.stats.loss)) << gradientMethodName(m) << " depth " << depth;
+      EXPECT_GT(droppedSamples(g.stats), 0u) << gradientMethodName(m) << " depth " << depth;
+      EXPECT_TRUE(std::isfinite(g.stats.loss())) << gradientMethodName(m) << " depth " << depth;
       size_t nonFinite = 0;
       for (double v : g.gradient) nonFinite += std::isfinite(v) ? 0 : 1;
       EXPECT_EQ(nonFinite, 0u) << gradientMethodName(m) << " depth " << depth;

@@ -74,12 +74,19 @@ TEST(PathAdjoint, GradientsMatchFiniteDifferencesThroughAReflection) {
   }
 }
 
+// Refused when the job's options are read (the engine keeps invariants only).
 TEST(PathAdjoint, LongerPathsNeedMethodPt) {
-  ReplayFixture f;
-  GradientOptions o;
-  o.method = GradientMethod::Restir;
-  o.maxDepth = 3;
-  EXPECT_THROW(GradientEngine engine(*f.scene, f.reg, {f.target}, o), InputError);
+  invr::v1::OptimizationSpec o;
+  o.set_method(invr::v1::METHOD_RESTIR);
+  o.set_max_depth(3);
+  try {
+    parseGradientOptions(o, 8, 8);
+    ADD_FAILURE() << "max_depth 3 with ReSTIR was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("optimization.max_depth"), std::string::npos) << e.what();
+  }
+  o.set_method(invr::v1::METHOD_PT);
+  EXPECT_EQ(parseGradientOptions(o, 8, 8).maxDepth, 3);
 }
 
 }  // namespace

@@ -45,12 +45,12 @@ PixelSetup makeSetup(const char* json, int depth, std::initializer_list<const ch
 // with a better signal-to-noise ratio), over `seeds` independent evaluations (a fresh session
 // each, so stage 1 runs every time: the maps are random too).
 constexpr size_t kSum = SIZE_MAX;
-std::vector<test::MeanSE> gradients(PixelSetup& s, GradientMethod method, PixelSampler sampler, int seeds, int samples,
+std::vector<test::MeanSE> gradients(PixelSetup& s, GradientMethod method, const PixelSampler& sampler, int seeds, int samples,
                                     int stage1Stride = 2) {
   GradientOptions o;
   o.method = method;
   o.maxDepth = s.depth;
-  o.pixels.sampler = sampler;
+  o.pixels.sampler = &sampler;
   o.pixels.samplesPerView = samples;
   o.pixels.stage1Stride = stage1Stride;
   GradientEngine engine(*s.scene, s.reg, {s.target}, o);
@@ -60,7 +60,7 @@ std::vector<test::MeanSE> gradients(PixelSetup& s, GradientMethod method, PixelS
     EngineSession session;
     GradientRequest r;
     r.views = {0};
-    r.seed = 5000 + uint64_t(i) + (sampler == PixelSampler::All ? 100000 : 0);
+    r.seed = 5000 + uint64_t(i) + (sampler.miniBatch() ? 0 : 100000);
     if (method == GradientMethod::Restir) {  // reuse across steps with sparse pixel sets
       GradientRequest b = r;
       b.renderOnly = true;
@@ -78,18 +78,18 @@ std::vector<test::MeanSE> gradients(PixelSetup& s, GradientMethod method, PixelS
   return g;
 }
 
-void checkUnbiased(PixelSetup& s, GradientMethod method, PixelSampler sampler, int seeds, int samples, std::initializer_list<size_t> components,
+void checkUnbiased(PixelSetup& s, GradientMethod method, const PixelSampler& sampler, int seeds, int samples, std::initializer_list<size_t> components,
                    int allSeeds = 0) {
   // Full images have lower variance per evaluation: a quarter of the seeds unless told.
-  auto all = gradients(s, method, PixelSampler::All, allSeeds > 0 ? allSeeds : seeds / 4, 0);
+  auto all = gradients(s, method, pixelSampler("all"), allSeeds > 0 ? allSeeds : seeds / 4, 0);
   auto batch = gradients(s, method, sampler, seeds, samples);
   for (size_t k : components) {
     if (k == kSum) k = all.size() - 1;
     double se = std::sqrt(all[k].se() * all[k].se() + batch[k].se() * batch[k].se());
-    std::printf("%-9s %-6s component %2zu: batch %+.4e (se %.1e), all %+.4e (se %.1e)\n", pixelSamplerName(sampler),
+    std::printf("%-9s %-6s component %2zu: batch %+.4e (se %.1e), all %+.4e (se %.1e)\n", sampler.name(),
                 gradientMethodName(method), k, batch[k].mean, batch[k].se(), all[k].mean, all[k].se());
-    EXPECT_NEAR(batch[k].mean, all[k].mean, test::kSigmas * se) << pixelSamplerName(sampler) << " component " << k;
-    EXPECT_LT(test::kSigmas * se, 0.25 * std::abs(all[k].mean)) << pixelSamplerName(sampler) << " component " << k << ": no power";
+    EXPECT_NEAR(batch[k].mean, all[k].mean, test::kSigmas * se) << sampler.name() << " component " << k;
+    EXPECT_LT(test::kSigmas * se, 0.25 * std::abs(all[k].mean)) << sampler.name() << " component " << k << ": no power";
   }
 }
 
@@ -101,11 +101,19 @@ PixelSetup& direct() {
 // Two albedo texels (one of each checker colour), the point light's red intensity, and the sum.
 // (The plate's roughness is left to the finite-difference tests: its gradient is too noisy here to
 // resolve 25 % in a second, and the pixel weights do not depend on the parameter kind.)
-TEST(PixelSampling, UniformIsUnbiased) { checkUnbiased(direct(), GradientMethod::Pt, PixelSampler::Uniform, 512, 96, {0, 4, 49, kSum}); }
-TEST(PixelSampling, LossGradIsUnbiased) { checkUnbiased(direct(), GradientMethod::Pt, PixelSampler::LossGrad, 512, 96, {0, 4, 49, kSum}); }
-TEST(PixelSampling, AdaptiveIsUnbiased) { checkUnbiased(direct(), GradientMethod::Pt, PixelSampler::Adaptive, 512, 96, {0, 4, 49, kSum}); }
+// Every registered mini-batch sampler (a new one is tested by registering it).
+std::vector<std::string> miniBatchSamplers() {
+  std::vector<std::string> names;
+  for (const PixelSampler* k : pixelSamplers())
+    if (k->miniBatch()) names.push_back(k->name());
+  return names;
+}
+class EveryPixelSampler : public testing::TestWithParam<std::string> {};
+TEST_P(EveryPixelSampler, IsUnbiased) { checkUnbiased(direct(), GradientMethod::Pt, pixelSampler(GetParam()), 512, 96, {0, 4, 49, kSum}); }
+INSTANTIATE_TEST_SUITE_P(PixelSampling, EveryPixelSampler, testing::ValuesIn(miniBatchSamplers()),
+                         [](const testing::TestParamInfo<std::string>& info) { return info.param; });
 TEST(PixelSampling, AdaptiveWithRestirIsUnbiased) {
-  checkUnbiased(direct(), GradientMethod::Restir, PixelSampler::Adaptive, 512, 96, {0, 4, 49, kSum});
+  checkUnbiased(direct(), GradientMethod::Restir, pixelSampler("adaptive"), 512, 96, {0, 4, 49, kSum});
 }
 // Adaptive sampling's failure case (Yan et al. 2025): stage 1 traces one path per cell, and a
 // caustic (a diffuse bounce that must find the glass sphere and refract to the lamp) is almost
@@ -170,7 +178,7 @@ TEST(PixelSampling, AdaptiveStaysUnbiasedOnACaustic) {
   GradientOptions o;
   o.method = GradientMethod::Pt;
   o.maxDepth = s.depth;
-  o.pixels.sampler = PixelSampler::Adaptive;
+  o.pixels.sampler = &pixelSampler("adaptive");
   o.pixels.samplesPerView = 96;
   o.pixels.stage1Stride = stride;
   GradientEngine engine(*s.scene, s.reg, {s.target}, o);
@@ -189,8 +197,8 @@ TEST(PixelSampling, AdaptiveStaysUnbiasedOnACaustic) {
               double(o.pixels.defensive) * causticPixels / P);
 
   // 3. Unbiased, for the texels under the caustic and the sum.
-  auto all = gradients(s, GradientMethod::Pt, PixelSampler::All, 4096, 0);
-  auto batch = gradients(s, GradientMethod::Pt, PixelSampler::Adaptive, 8192, 96, stride);
+  auto all = gradients(s, GradientMethod::Pt, pixelSampler("all"), 4096, 0);
+  auto batch = gradients(s, GradientMethod::Pt, pixelSampler("adaptive"), 8192, 96, stride);
   const size_t sum = all.size() - 1;
   for (size_t k : {size_t(0), size_t(12), sum}) {
     double se = std::sqrt(all[k].se() * all[k].se() + batch[k].se() * batch[k].se());
@@ -256,7 +264,7 @@ TEST(PixelSampling, EveryPixelKeepsAProbabilityAndWeightsMatchTheDraws) {
   }
   EXPECT_NEAR(mean[7], 1.0, 0.05);
   EXPECT_NEAR(mean[50], 1.0, 0.25);  // rare pixel: large weights, more noise
-  EXPECT_THROW(pixelSamplerFromName("random"), InputError);
+  EXPECT_THROW(pixelSampler("random"), InputError);
 }
 
 // A pixel drawn c times is traced c times, each draw on streams of its own (Alg. 1), not once
@@ -273,7 +281,7 @@ TEST(PixelSampling, EveryDrawGetsPathsOfItsOwn) {
   auto pixelVariance = [&](int draws) {
     GradientOptions o;
     o.method = GradientMethod::Pt;
-    o.pixels.sampler = PixelSampler::Adaptive;
+    o.pixels.sampler = &pixelSampler("adaptive");
     o.pixels.samplesPerView = draws;
     o.pixels.refreshEvery = 1 << 30;  // keep the preset map
     GradientEngine engine(*s.scene, s.reg, {s.target}, o);

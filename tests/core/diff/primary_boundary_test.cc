@@ -48,7 +48,7 @@ struct QuadCase {
     GradientScratchPool scratch(reg.size());
     std::vector<double> g(reg.size(), 0.0);
     PrimaryBoundary boundary(*scene, reg, topology);
-    BoundaryPassStats st = boundary.run(*estimator, 0, adjoint, samples, seed, 0, scratch, g);
+    BoundaryPassStats st = boundary.run({0, adjoint, *estimator, samples, seed, 0, scratch, g});
     if (stats) *stats = st;
     return g;
   }

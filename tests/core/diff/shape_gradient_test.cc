@@ -18,6 +18,7 @@
 
 #include "core/diff/edge_reservoir_boundary.h"
 #include "core/diff/gradient_engine.h"
+#include "core/diff/gradient_job_check.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
 #include "core/scene/zoo.h"
@@ -25,6 +26,14 @@
 
 namespace invr {
 namespace {
+
+// A counter the edge-first area-light term keeps of its own (0 when the term did not run).
+uint64_t edgeCounter(const invr::v1::GradientStats& st, const std::string& name) {
+  auto term = st.boundary().find("area_shadows_edge_first");
+  if (term == st.boundary().end()) return 0;
+  auto c = term->second.counters().find(name);
+  return c == term->second.counters().end() ? 0 : c->second;
+}
 
 using test::kSigmas;
 using test::MeanSE;
@@ -360,16 +369,16 @@ TEST(ShapeGradient, EdgeReservoirsAreKeptAndUnseenOnesPreserved) {
     size_t most = 0;
     for (uint64_t step = 0; step < 12; ++step) {
       r.step = step;
-      const GradientStats st = engine.evaluate(r, session).stats;
-      EXPECT_EQ(st.edgeReservoirs, 256u + st.edgeReservoirsPreserved) << "step " << step;
-      EXPECT_EQ(session.edges.items.size(), st.edgeReservoirs);
+      const invr::v1::GradientStats st = engine.evaluate(r, session).stats;
+      EXPECT_EQ(edgeCounter(st, "edge_reservoirs"), 256u + edgeCounter(st, "edge_reservoirs_preserved")) << "step " << step;
+      EXPECT_EQ(session.edges.items.size(), edgeCounter(st, "edge_reservoirs"));
       if (step == 0 || all) {
-        EXPECT_EQ(st.edgeReservoirsPreserved, 0u) << "step " << step;
+        EXPECT_EQ(edgeCounter(st, "edge_reservoirs_preserved"), 0u) << "step " << step;
       }
       if (step == 1 && !all) {
-        EXPECT_GT(st.edgeReservoirsPreserved, 0u);  // shadows falling off the film, or hidden
+        EXPECT_GT(edgeCounter(st, "edge_reservoirs_preserved"), 0u);  // shadows falling off the film, or hidden
       }
-      most = std::max(most, st.edgeReservoirsPreserved);
+      most = std::max(most, edgeCounter(st, "edge_reservoirs_preserved"));
     }
     EXPECT_LE(most, size_t(EdgeReservoirBoundary::kMaxAge - 1) * 256u);
   }
@@ -378,7 +387,7 @@ TEST(ShapeGradient, EdgeReservoirsAreKeptAndUnseenOnesPreserved) {
   EngineSession session;
   GradientRequest r;
   r.views = {0};
-  EXPECT_EQ(ptEngine.evaluate(r, session).stats.edgeReservoirs, 0u);  // nothing to reuse
+  EXPECT_EQ(edgeCounter(ptEngine.evaluate(r, session).stats, "edge_reservoirs"), 0u);  // nothing to reuse
   EXPECT_TRUE(session.edges.items.empty());
 }
 
@@ -463,7 +472,7 @@ TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {
   reg.add(*scene, "shapes/card/translation");
   auto refusal = [&](GradientOptions o) {
     try {
-      checkShapeJob(*scene, reg, o);
+      validateGradientJob(*scene, reg, o);
     } catch (const InputError& e) {
       return std::string(e.what());
     }
@@ -475,13 +484,13 @@ TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {
   EXPECT_NE(refusal(o).find("max_depth 1"), std::string::npos);
   EXPECT_EQ(refusal(shapeOptions(GradientMethod::Restir)), "");
   o = shapeOptions(GradientMethod::Pt);
-  o.pixels.sampler = PixelSampler::Uniform;
+  o.pixels.sampler = &pixelSampler("uniform");
   EXPECT_NE(refusal(o).find("pixel_sampler all"), std::string::npos);
   // Environments are accepted (their shadow borders have an estimator).
   auto sky = test::sceneFromJson(skyScene(kCardInView).c_str());
   ParameterRegistry skyReg;
   skyReg.add(*sky, "shapes/card/translation");
-  EXPECT_NO_THROW(checkShapeJob(*sky, skyReg, shapeOptions(GradientMethod::Restir)));
+  EXPECT_NO_THROW(validateGradientJob(*sky, skyReg, shapeOptions(GradientMethod::Restir)));
   // A smooth-shaded moving mesh (the zoo sphere has vertex normals).
   auto smooth = test::sceneFromJson(R"({"materials": [{"name": "m", "diffuse": {}}],
     "shapes": [{"name": "ball", "sphere": {}, "material": "m"}],
@@ -490,7 +499,7 @@ TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {
   ParameterRegistry ballReg;
   ballReg.add(*smooth, "shapes/ball/translation");
   try {
-    checkShapeJob(*smooth, ballReg, shapeOptions(GradientMethod::Pt));
+    validateGradientJob(*smooth, ballReg, shapeOptions(GradientMethod::Pt));
     ADD_FAILURE() << "a smooth moving mesh was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("interpolated vertex normals"), std::string::npos) << e.what();

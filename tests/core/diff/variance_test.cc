@@ -114,7 +114,7 @@ TEST(Variance, TwoLightSelectionMatchesTheClosedForm) {
       r.seed = 100 + uint64_t(i);
       GradientResult g = engine.evaluate(r, session);
       grad.add(g.gradient[0]);
-      term.add(g.stats.varianceTerm);
+      term.add(g.stats.variance_term());
       EXPECT_NEAR(g.gradient[0], -g.gradient[1], 1e-6 * (1 + std::abs(g.gradient[0]))) << "softmax: the two logits' derivatives cancel";
     }
     std::printf("%s: dV/dz_a %+.5e (se %.1e), closed form %+.5e; V %.5e (se %.1e), closed form %.5e\n", detached ? "detached" : "unbiased",
@@ -475,12 +475,12 @@ LossCheck lossAgainstFiniteDifferences(Scene& scene, const ParameterRegistry& re
   for (int i = 0; i < evaluations; ++i) {
     GradientResult g = evaluate(theta, 1000 + uint64_t(i));
     c.gradient.add(g.gradient[index]);
-    c.biasTerm.add(g.stats.biasTerm);
-    c.varianceTerm.add(g.stats.varianceTerm);
+    c.biasTerm.add(g.stats.bias_term());
+    c.varianceTerm.add(g.stats.variance_term());
     auto plus = theta, minus = theta;
     plus[index] += h;
     minus[index] -= h;
-    c.fd.add((evaluate(plus, 5000 + uint64_t(i)).stats.loss - evaluate(minus, 5000 + uint64_t(i)).stats.loss) / (2.0 * double(h)));
+    c.fd.add((evaluate(plus, 5000 + uint64_t(i)).stats.loss() - evaluate(minus, 5000 + uint64_t(i)).stats.loss()) / (2.0 * double(h)));
   }
   reg.write(theta, scene);
   return c;

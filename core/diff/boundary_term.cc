@@ -1,0 +1,69 @@
+#include "core/diff/boundary_term.h"
+
+#include <algorithm>
+#include <deque>
+#include <stdexcept>
+
+#include "core/diff/gradient_options.h"
+#include "core/error.h"
+
+namespace invr {
+
+namespace v1 = invr::v1;
+
+BoundaryOptions parseBoundaryOptions(const v1::BoundarySpec& b) {
+  auto fail = [](const std::string& field, const std::string& why) { throw InputError("optimization.boundary." + field + ": " + why); };
+  const BoundaryOptions defaults;
+  BoundaryOptions o;
+  if (b.samples() < 0 || b.samples() > (1 << 24)) fail("samples", "must be in 1..16777216 (0: the default)");
+  if (b.light_points() < 0 || b.light_points() > 4096)
+    fail("light_points", "must be in 1..4096 (0: the default " + std::to_string(defaults.lightPoints) + ")");
+  if (b.edge_neighbours() < 0 || b.edge_neighbours() > 8) fail("edge_neighbours", "must be in 0..8 (0, the default: none)");
+  o.samples = b.samples();
+  o.lightPoints = b.light_points() > 0 ? b.light_points() : defaults.lightPoints;
+  o.primary = b.has_primary() ? b.primary() : defaults.primary;
+  o.secondary = b.has_secondary() ? b.secondary() : defaults.secondary;
+  o.multiViewShortcut = b.multi_view_shortcut();
+  o.areaSampling = b.area_sampling() == v1::AREA_SAMPLING_LIGHT_POINTS ? BoundaryOptions::AreaSampling::LightPoints
+                                                                       : BoundaryOptions::AreaSampling::EdgeFirst;
+  o.edgeImportance = b.has_edge_importance() ? b.edge_importance() : defaults.edgeImportance;
+  o.edgeNeighbours = b.edge_neighbours();
+  o.allowUnsampled = b.allow_unsampled_discontinuities();
+  return o;
+}
+
+namespace {
+
+std::vector<const BoundaryTermKind*>& registry() {
+  static std::vector<const BoundaryTermKind*> kinds;
+  return kinds;
+}
+std::deque<BoundaryTermKind>& storage() {  // stable addresses for the registry's pointers
+  static std::deque<BoundaryTermKind> kinds;
+  return kinds;
+}
+
+}  // namespace
+
+RegisterBoundaryTerm::RegisterBoundaryTerm(BoundaryTermKind kind) {
+  auto& kinds = registry();
+  for (const BoundaryTermKind* k : kinds)
+    if (k->name == kind.name || k->order == kind.order)
+      throw std::logic_error("boundary term '" + kind.name + "': its name or order is taken by '" + k->name + "'");
+  // Terms of one discontinuity may share a stream (alternative samplings of it, never both in one
+  // job); `applies` keeps them apart.
+  kinds.push_back(&storage().emplace_back(std::move(kind)));
+  std::sort(kinds.begin(), kinds.end(), [](const BoundaryTermKind* a, const BoundaryTermKind* b) { return a->order < b->order; });
+}
+
+const std::vector<const BoundaryTermKind*>& boundaryTermKinds() { return registry(); }
+
+std::vector<const BoundaryTermKind*> boundaryTermsFor(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options) {
+  std::vector<const BoundaryTermKind*> out;
+  if (!params.hasShapeParameters()) return out;
+  for (const BoundaryTermKind* k : registry())
+    if (k->applies(scene, options)) out.push_back(k);
+  return out;
+}
+
+}  // namespace invr

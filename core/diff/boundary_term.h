@@ -1,0 +1,143 @@
+// Boundary terms of shape derivatives (Wang et al. 2023, §5-6): the parts of a gradient that come
+// from visibility discontinuities moving with the shape parameters. Each term samples one kind of
+// discontinuity (silhouettes and creases seen by the camera, the shadow borders of one kind of
+// light) and lives in its own file, where it registers itself:
+//
+//   primary_boundary.cc             primary: silhouette and crease edges (Eq. 9-11)
+//   delta_shadow_boundary.cc        shadow borders of point and spot lights
+//   edge_reservoir_boundary.cc      shadow borders of area lights, edge point first (Alg. 6, Eq. 27)
+//   area_shadow_boundary.cc         shadow borders of area lights, light points first
+//   environment_shadow_boundary.cc  shadow borders of environment lights
+//
+// The engine builds the list of terms that apply to its scene and options once, then runs each
+// per view of a step, in the order of their `order` (the gradient is summed in that order, so a
+// step's numbers do not depend on registration order). docs/architecture.md shows how to add one.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/diff/parameters.h"
+#include "core/geometry/edge_topology.h"
+#include "core/image/image.h"
+#include "core/math/rng.h"
+#include "core/render/render_options.h"
+#include "core/scene/scene.h"
+#include "invr/v1/job.pb.h"
+
+namespace invr {
+
+// What a job sets of the boundary terms (optimization.boundary): used when shape parameters are
+// optimised. Defaults here are the job's defaults.
+struct BoundaryOptions {
+  bool primary = true;    // silhouette and crease edges of moving meshes seen by the camera
+  bool secondary = true;  // shadow borders of point, spot, area and environment lights
+  int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
+  int lightPoints = 16;   // light points (area lights) and directions (environments) per pass whose shadow borders are sampled
+  // ReSTIR: test the support of reused samples in the current geometry (the paper's multi-view
+  // shortcut, §3.2), which is biased once geometry moves. Default: in the geometry each sample was
+  // created in (unbiased; the reservoir store keeps the moving meshes' poses for that).
+  bool multiViewShortcut = false;
+  // Area lights' shadow borders: sampled edge point first with the light point by RIS (Alg. 6;
+  // restir reuses edge reservoirs across steps) or light points first.
+  enum class AreaSampling { EdgeFirst, LightPoints };
+  AreaSampling areaSampling = AreaSampling::EdgeFirst;
+  bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
+  // restir: previous-step edge reservoirs merged per sample (Alg. 6). 0: they steer edge importance
+  // only; merging measured no gain (docs/differentiable-rendering.md).
+  int edgeNeighbours = 0;
+  // Accept moving shapes whose discontinuities no term samples (contact curves with other surfaces,
+  // hard spot-light cones on them): the gradient is then biased, and the plan says so.
+  bool allowUnsampled = false;
+  int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
+};
+
+// Throws InputError naming the field (optimization.boundary.*) for a value out of range.
+BoundaryOptions parseBoundaryOptions(const invr::v1::BoundarySpec& spec);
+
+struct BoundaryPassStats {
+  size_t candidateEdges = 0;  // edges a sample may pick
+  double filmLength = 0;      // primary: their total clipped length in pixels
+  uint64_t samples = 0, dropped = 0;  // dropped: non-finite
+  RayStats rays;
+};
+
+struct GradientOptions;
+struct EngineSession;
+class InteriorEstimator;
+class GradientScratchPool;
+
+// What a term is built from, once per step.
+struct BoundaryStep {
+  const Scene& scene;
+  const ParameterRegistry& params;
+  const std::vector<EdgeTopology>& topology;  // per mesh (occluders need not move to cast a moving shadow)
+  const GradientOptions& options;
+  EngineSession& session;         // what terms keep between steps (edge reservoirs)
+  const std::vector<int>& views;  // the step's views (of this shard)
+  bool allSessionViews = false;   // the step holds every view the session serves
+};
+
+// One view's pass of a term.
+struct BoundaryView {
+  int view = 0;
+  const Image& adjoint;                // dLoss/dI per pixel and channel (the primal render's)
+  const InteriorEstimator& estimator;  // the derivative pass's, for terms that trace the scene's radiance
+  int samples = 0;                     // BoundaryOptions::samplesFor the film
+  uint64_t stream = 0;                 // streamSeed(job seed, the term's stream)
+  uint64_t step = 0;
+  GradientScratchPool& scratch;
+  std::vector<double>& gradient;
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+class BoundaryTerm {
+ public:
+  virtual ~BoundaryTerm() = default;
+  // Adds the view's samples into view.gradient (sample i keyed by (stream, step, view, i); chunks
+  // reduced in order: the same sums for any thread count).
+  virtual BoundaryPassStats run(const BoundaryView& view) = 0;
+  // After every view of the step: what the term keeps for the next step, and counters of its own
+  // (added to the stats' counters map). Default: nothing.
+  virtual void endStep(RayStats& rays, std::vector<std::pair<std::string, uint64_t>>& counters) { (void)rays, (void)counters; }
+};
+
+// The facts of a job a term's plan line and memory estimate are made from.
+struct BoundaryPlanInput {
+  const Scene& scene;
+  const GradientOptions& options;
+  size_t shardViews = 1;  // views of the largest shard
+};
+
+// One kind of boundary term, as it registers itself.
+struct BoundaryTermKind {
+  std::string name;  // the key of its statistics (GradientStats.boundary)
+  int order = 0;     // where it runs in a step
+  StreamId stream;   // its random numbers
+  // Whether it has work for this scene under these options (the options may select another term
+  // for the same discontinuities).
+  std::function<bool(const Scene&, const GradientOptions&)> applies;
+  std::function<std::unique_ptr<BoundaryTerm>(const BoundaryStep&)> make;
+  // One line of the job's plan: what it computes per step.
+  std::function<std::string(const BoundaryPlanInput&)> describe;
+  // Bytes one worker holds for it beyond the shared edge topology (0 by default).
+  std::function<double(const BoundaryPlanInput&)> memoryBytes;
+};
+
+// Registers a term kind; a file defines one of these at namespace scope. Throws std::logic_error
+// for a name or stream already registered.
+struct RegisterBoundaryTerm {
+  explicit RegisterBoundaryTerm(BoundaryTermKind kind);
+};
+
+// Every registered kind, in run order.
+const std::vector<const BoundaryTermKind*>& boundaryTermKinds();
+// The kinds that apply to a scene under a job's options (none unless shapes are optimised and the
+// options enable them).
+std::vector<const BoundaryTermKind*> boundaryTermsFor(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options);
+
+}  // namespace invr
