@@ -87,8 +87,6 @@ void JobRunner::run(const std::string& id) {
     sj.shape.width = c.p.scene->width;
     sj.shape.height = c.p.scene->height;
     sj.shards = c.p.shards.size();
-    // A worker that takes over a shard mid-job rebuilds its reservoirs with render-only steps.
-    sj.rebuildBurnIn = c.p.gradient.method == GradientMethod::Restir ? uint32_t(std::max(c.p.burnIn, 1)) : 0;
     sj.priority = std::max<uint32_t>(1, c.spec.scheduling().priority());
     sj.maxWorkers = c.spec.scheduling().max_workers();
     sj.log = [this, id](const std::string& m) { book_.log(id, m); };
@@ -169,12 +167,26 @@ void JobRunner::runSteps(Context& c) {
   Stopwatch sinceFirstStep, sinceLastStep;
   // The shards go to workers; the loop sums their results in shard order, as in process.
   double wall = 0, slowest = 0;
+  // A worker that builds a shard's session mid-job (a new assignment, an eviction, a restart)
+  // refills its reservoirs with render-only steps first, but only when the shard has a past: one
+  // whose views no earlier evaluation held starts empty, as it does in process. Which shards have
+  // a past follows from the counters alone (the batches are a function of them), so a resumed job
+  // finds it again.
+  const uint32_t rebuildBurnIn = p.gradient.method == GradientMethod::Restir ? uint32_t(std::max(p.burnIn, 1)) : 0;
+  std::vector<bool> shardSeen(p.shards.size(), false);
+  uint64_t seenBefore = 0;  // evaluations [0, seenBefore) are counted in shardSeen
+  auto markSeen = [&](const Evaluation& ev) {
+    for (size_t s = 0; s < p.shards.size(); ++s)
+      if (!shardSeen[s] && !shardRequest(p, ev, s).views.empty()) shardSeen[s] = true;
+  };
   auto evaluateOnWorkers = [&](const Evaluation& e, const std::vector<float>& at) {
+    for (; seenBefore < e.counter; ++seenBefore) markSeen(evaluationAt(p, seenBefore));
     std::vector<std::optional<v1::Task>> tasks(p.shards.size());
     for (size_t s = 0; s < p.shards.size(); ++s) {
       GradientRequest r = shardRequest(p, e, s);
       if (r.views.empty()) continue;
       v1::Task t = baseTask(id, s, at);
+      t.set_rebuild_burn_in(shardSeen[s] ? rebuildBurnIn : 0);
       t.set_kind(v1::Task::GRADIENT);
       t.mutable_views()->Assign(r.views.begin(), r.views.end());
       t.set_batch_views(uint32_t(r.batchViews));

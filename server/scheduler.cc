@@ -291,9 +291,6 @@ void Scheduler::sendLocked(Job& job, size_t s, Worker& w) {
   v1::Task t = *job.ready[s];
   job.ready[s] = nullptr;
   t.set_task_id(nextTask_++);
-  // Whenever a worker (re)builds the shard's session mid-job (new assignment, eviction, restart)
-  // it refills the reservoirs with this many render-only steps first.
-  t.set_rebuild_burn_in(job.info.rebuildBurnIn);
   t.set_spec_sha256(job.info.specHash);
   Lease l;
   l.taskId = t.task_id();

@@ -69,7 +69,6 @@ struct ScheduledJob {
   std::string specHash;
   ResultShape shape;
   size_t shards = 0;
-  uint32_t rebuildBurnIn = 0;  // render-only steps a worker runs when it (re)builds a session
   double priority = 1;         // fair-share weight
   uint32_t maxWorkers = 0;     // distinct workers holding its shards; 0: no cap
   std::function<void(const std::string&)> log;  // a line in the job's progress log
