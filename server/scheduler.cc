@@ -1,4 +1,5 @@
 #include "server/scheduler.h"
+#include "core/stopwatch.h"
 
 #include <spdlog/spdlog.h>
 
@@ -11,7 +12,7 @@ namespace v1 = invr::v1;
 
 namespace {
 
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double secondsSince(Clock::time_point t) { return Stopwatch(t).seconds(); }
 
 std::string fmtSeconds(double s) {
   char b[32];

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "invr/v1/service.grpc.pb.h"
+#include "core/stopwatch.h"
 #include "proto/wire/wire.h"
 
 namespace invr::worker {
@@ -86,7 +87,7 @@ bool Connection::serve(const Handlers& handlers) {
           spdlog::info("worker {}: stopping; the task in hand has {:g} s to finish", opt_.name, opt_.drainSeconds);
         }
         if (!busy.load()) break;
-        if (!cancel_ && std::chrono::duration<double>(std::chrono::steady_clock::now() - *stopSince).count() > opt_.drainSeconds) {
+        if (!cancel_ && Stopwatch(*stopSince).seconds() > opt_.drainSeconds) {
           spdlog::info("worker {}: handing task {} back to the server", opt_.name, busy.load());
           cancel_ = true;
         }

@@ -12,6 +12,7 @@
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"
 #include "core/scene/zoo.h"
+#include "core/stopwatch.h"
 
 namespace invr::cli {
 
@@ -25,9 +26,7 @@ struct RaysArgs {
   bool json = false;
 };
 
-double seconds(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+double seconds(std::chrono::steady_clock::time_point t0) { return Stopwatch(t0).seconds(); }
 
 // Replays the renderer's own rays through bare rtcIntersect1 / rtcOccluded1, in parallel with the
 // same TBB scheduler the renderer uses. Returns seconds.

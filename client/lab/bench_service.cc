@@ -28,6 +28,7 @@
 #include "core/scene/zoo.h"
 #include "core/optim/local_run.h"
 #include "server/server.h"
+#include "core/stopwatch.h"
 
 namespace invr::cli {
 
@@ -102,13 +103,13 @@ double twoJobsSeconds(const std::vector<v1::JobSpec>& jobs, bool together, std::
     auto final = c.watch(id, 0, [](const v1::ProgressEvent&) {}, never);
     if (!final || final->state() != v1::SUCCEEDED) throw std::runtime_error("bench service: job did not succeed: " + (final ? final->reason() : ""));
   };
-  auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch clock;
   for (const auto& j : jobs) {
     ids.push_back(c.submit(j, "").job_id());
     if (!together) waitFor(ids.back());
   }
   for (const auto& id : ids) waitFor(id);
-  double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  double wall = clock.seconds();
   workerSeconds.clear();
   for (const auto& id : ids) workerSeconds.push_back(c.get(id).worker_seconds());
   service.stop();

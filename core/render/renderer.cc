@@ -14,6 +14,7 @@
 #include "core/math/rng.h"
 #include "core/io/job_io.h"
 #include "core/render/path_tracer.h"
+#include "core/stopwatch.h"
 
 namespace invr {
 
@@ -23,7 +24,7 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
     throw InputError("view " + std::to_string(view) + " out of range (scene has " + std::to_string(scene.cameras.size()) + " views)");
   if (opt.spp <= 0) throw InputError("spp must be positive (got " + std::to_string(opt.spp) + ")");
   if (!scene.accelerated()) throw std::logic_error("renderView: the scene was built for validation only (no BVH)");
-  auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch clock;
   const int W = scene.width, H = scene.height;
   const Camera& cam = scene.cameras[size_t(view)];
   RenderResult res;
@@ -74,7 +75,7 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
   stats.combine_each([&](const RayStats& s) { res.rays += s; });
   nonFinite.combine_each([&](uint64_t n) { res.nonFiniteSamples += n; });
   if (recordRays) records.combine_each([&](const std::vector<RayRecord>& v) { recordRays->insert(recordRays->end(), v.begin(), v.end()); });
-  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  res.seconds = clock.seconds();
   return res;
 }
 

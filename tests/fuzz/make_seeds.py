@@ -500,15 +500,19 @@ def pixels(n, v):
 TASK_RESULTS = {
     "gradient.txtpb": 'task_id: 1 job_id: "job-000001" shard: 0 ' +
                       " ".join("gradient: %g" % (0.1 * i - 0.5) for i in range(12)) +
-                      " loss: 0.25 seconds_primal: 0.01 seconds_derivative: 0.02 reservoirs: 96 mean_m: 4.5 shading_points: 48",
-    "render_only.txtpb": 'task_id: 2 job_id: "job-000001" shard: 1 loss: 0 seconds_primal: 0.01 rebuilt: true seconds_session: 0.5',
+                      " stats { loss: 0.25 seconds_primal: 0.01 seconds_derivative: 0.02 reservoirs: 96 sum_m: 216 shading_points: 48"
+                      ' rays { camera: 96 shadow: 200 } boundary { key: "primary" value { seconds: 0.01 samples: 256'
+                      ' counters { key: "edges" value: 7 } } } }',
+    "render_only.txtpb": 'task_id: 2 job_id: "job-000001" shard: 1 stats { seconds_primal: 0.01 } rebuilt: true seconds_session: 0.5',
     "final_render.txtpb": 'task_id: 3 job_id: "job-000001" shard: 0 ' +
                           "renders { width: 8 height: 6 channels: 3 %s } " % pixels(144, 0.5) +
                           "renders { width: 8 height: 6 channels: 3 %s }" % pixels(144, 0.25),
     "spec_unknown.txtpb": 'task_id: 1 job_id: "job-000001" shard: 0 spec_unknown: true',
     "error.txtpb": 'task_id: 1 job_id: "job-000001" shard: 0 error: "materials/red: texture not found" input_error: true',
-    # Malicious: one gradient value too many; a render whose pixels do not match its size; a render
+    # Malicious: statistics with a negative timing and too many boundary terms; one gradient value too many; a render whose pixels do not match its size; a render
     # larger than the film; negative sizes; more renders than views.
+    "stats_bad.txtpb": 'task_id: 1 job_id: "job-000001" ' + " ".join("gradient: 1" for _ in range(12)) +
+                       " stats { seconds_boundary: -1 " + " ".join('boundary { key: "t%d" value { samples: 1 } }' % i for i in range(70)) + " }",
     "gradient_13.txtpb": 'task_id: 1 job_id: "job-000001" ' + " ".join("gradient: 1" for _ in range(13)),
     "render_short.txtpb": 'task_id: 3 job_id: "job-000001" renders { width: 8 height: 6 channels: 3 %s } '
                           'renders { width: 8 height: 6 channels: 3 %s }' % (pixels(10, 1), pixels(144, 1)),
