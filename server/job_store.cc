@@ -75,6 +75,7 @@ void JobStore::appendEvent(const std::string& job, const v1::ProgressEvent& ev) 
   std::string line;
   google::protobuf::util::JsonPrintOptions o;
   o.preserve_proto_field_names = true;
+  o.always_print_primitive_fields = true;  // zero counters too: every field is in every step
   (void)google::protobuf::util::MessageToJsonString(ev, &line, o);
   std::ofstream out(jobDir(job) / "progress.jsonl", std::ios::app);
   out << line << "\n";

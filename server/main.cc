@@ -27,6 +27,10 @@ int main(int argc, char** argv) {
   app.add_option("--lease-seconds", o.leaseSeconds, "a task unanswered this long is reassigned")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--heartbeat-timeout", o.heartbeatTimeoutSeconds, "a worker silent this long is presumed gone")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--max-attempts", o.maxAttempts, "attempts per shard and step before a job fails")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--final-spp", o.finalSpp, "samples per pixel of the final renders written with a job's results")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--final-views", o.finalViews, "final renders are written for the first this many views (0: none)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--assign-grace", o.assignGraceSeconds, "at a job's start, seconds to wait for one worker per shard")->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--max-asset-mb", maxAssetMb, "largest upload accepted")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--max-job-memory-mb", maxJobMb,

@@ -10,6 +10,7 @@
 #include <vector>
 #include <algorithm>
 
+#include "core/geometry/mesh.h"
 #include "core/io/job_io.h"
 #include "core/scene/scene_builder.h"
 
@@ -112,6 +113,16 @@ inline RegionComparison compareRegions(const PixelStats& a, const PixelStats& b,
 inline std::unique_ptr<Scene> sceneFromJson(const std::string& sceneJson) {
   auto job = parseJobJson("{\"scene\": " + sceneJson + "}", "test");
   return buildJobScene(job);
+}
+
+// A closed mesh's signed volume (divergence theorem): positive when its faces point outward.
+inline double signedVolume(const TriangleMesh& m) {
+  double v = 0;
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    Vec3 a = m.positions[m.indices[3 * t]], b = m.positions[m.indices[3 * t + 1]], c = m.positions[m.indices[3 * t + 2]];
+    v += dot(a, cross(b, c)) / 6.0;
+  }
+  return v;
 }
 
 }  // namespace invr::test

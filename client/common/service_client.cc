@@ -252,6 +252,7 @@ std::string eventJson(const v1::ProgressEvent& e) {
   std::string s;
   google::protobuf::util::JsonPrintOptions o;
   o.preserve_proto_field_names = true;
+  o.always_print_primitive_fields = true;  // zero counters too: every field is in every step
   (void)google::protobuf::util::MessageToJsonString(e, &s, o);
   return s;
 }

@@ -10,6 +10,7 @@
 #include "client/lab/bench.h"
 #include "client/lab/lab_commands.h"
 #include "client/common/job_argument.h"
+#include "core/diff/pixel_sampler.h"
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
 #include "core/optim/equal_time.h"
@@ -563,10 +564,12 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   rc->add_option("--loss", ra->loss, "override the loss (l2, relative_l2, l1)");
   rc->add_option("--lr", ra->learningRate, "override every parameter's learning rate");
   rc->add_option("--optimizer", ra->optimizer, "override the optimizer (adam, sgd)");
-  rc->add_option("--pixel-samplers", ra->pixelSamplers, "compare these pixel samplers (all, uniform, loss_grad, adaptive) with the job's method")
+  std::string samplerNames;
+  for (const PixelSampler* ps : pixelSamplers()) samplerNames += std::string(samplerNames.empty() ? "" : ", ") + ps->name();
+  rc->add_option("--pixel-samplers", ra->pixelSamplers, "compare these pixel samplers (" + samplerNames + ") with the job's method")
       ->delimiter(',');
   rc->add_option("--pixel-samples", ra->pixelSamples, "pixel samples per view for the mini-batch samplers");
-  rc->add_option("--csv", ra->csv, "convergence data (method, step, seconds, loss, param_error)")->capture_default_str();
+  rc->add_option("--csv", ra->csv, "convergence data: method, step, seconds, loss, param_error, image_error, then one column per statistic")->capture_default_str();
   rc->add_option("--param", ra->params, "NAME[=V[,V,V]]: recover this parameter instead of the job's, from the values given (repeatable)")
       ->allow_extra_args(false);
   rc->add_option("--methods", ra->methods, "light-sampling methods to compare: pt, ris, restir, forward_only (ReSTIR in the primal pass only)")

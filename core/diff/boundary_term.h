@@ -129,7 +129,7 @@ struct BoundaryTermKind {
 };
 
 // Registers a term kind; a file defines one of these at namespace scope. Throws std::logic_error
-// for a name or stream already registered.
+// for a name or order already registered.
 struct RegisterBoundaryTerm {
   explicit RegisterBoundaryTerm(BoundaryTermKind kind);
 };

@@ -171,9 +171,10 @@ void ConvergenceCsv::write() const {
   std::vector<std::vector<std::pair<std::string, std::string>>> cells(rows_.size());
   for (size_t i = 0; i < rows_.size(); ++i) {
     if (!rows_[i].stats) continue;
-    invr::v1::GradientStats stats = *rows_[i].stats;
-    stats.clear_loss();  // the loss column
+    const invr::v1::GradientStats& stats = *rows_[i].stats;
     flatten(stats, "", cells[i]);
+    // The statistics' loss is the row's own loss column.
+    std::erase_if(cells[i], [](const auto& cell) { return cell.first == "loss"; });
     for (const auto& [c, v] : cells[i])
       if (index.emplace(c, columns.size()).second) columns.push_back(c);
   }

@@ -29,8 +29,8 @@ std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir,
 // convergence.csv: one row per step (and eval's step 0), columns
 //   method, step, seconds, loss, param_error, image_error,
 // then every field of the step's GradientStats (but its loss: the loss column) by its proto path
-// (seconds_primal, rays.camera,
-// drops.primal, boundary.<term>.samples, boundary.<term>.counters.<name>, ...). A cell is empty
+// (seconds_primal, rays.camera, drops.primal, boundary.<term>.samples,
+// boundary.<term>.counters.<name>, ...; map entries by key), a column added when first seen. A cell is empty
 // where a value was not measured (loss at step 0, image error between checkpoints, statistics at
 // step 0); numbers have 9 significant digits, counts are exact; param_error is -1 for jobs without
 // ground truth.

@@ -353,7 +353,9 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
   // The heartbeat timeout is long, so only the lease can notice the stall. The lease covers a
   // healthy worker's longest task (building a moved shard's session) even under sanitizers.
   const std::string lease = std::to_string(scaledSeconds(12));
-  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120"});
+  // Final renders at 4 spp: at the default 64 a shard's four views take about 18 s on one
+  // loaded core, longer than the lease, and the healthy worker would lose them too.
+  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120", "--final-spp", "4"});
   pid_t stalled = c.startWorker(1);
   c.startWorker(1);
   v1::JobSpec job = smallJob("backlit", 6);
@@ -379,7 +381,9 @@ TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
   TempDir tmp;
   Cluster c(tmp.path);
   const std::string lease = std::to_string(scaledSeconds(12));
-  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120"});
+  // Final renders at 4 spp: at the default 64 a shard's four views take about 18 s on one
+  // loaded core, longer than the lease, and the healthy worker would lose them too.
+  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120", "--final-spp", "4"});
   std::atomic<int> received{0};
   // Connected first, so it gets a shard; it never answers, and its heartbeats say it is busy.
   ScriptedWorker hung(

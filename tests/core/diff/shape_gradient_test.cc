@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 
 #include "core/diff/edge_reservoir_boundary.h"
@@ -528,14 +529,21 @@ TEST(ShapeGradient, EdgeReservoirsMadeBeforeARotation) {
 
 // The zoo's knot (Wang et al. 2023, Figs. 6-7) at a small film: a flat-shaded torus knot whose
 // many silhouette edges cast shadows under a bright spot and two dim point fills (delta lights
-// only, so every shadow border goes to delta_shadow_boundary). `fillsOnly` drops the spot and
-// brightens the fills, so the point lights' borders carry the derivative.
-std::unique_ptr<Scene> knotScene(bool fillsOnly) {
+// only, so every shadow border goes to delta_shadow_boundary). `Fills` drops the spot and
+// brightens the fills, so the point lights' borders carry the derivative; `BesideCamera` keeps one
+// of them, moved 0.5 right of and 0.4 above the eye (0, 1.2, 3.0), where the knot's shadows on
+// itself are thin.
+enum class KnotLights { SpotAndFills, Fills, BesideCamera };
+
+std::unique_ptr<Scene> knotScene(KnotLights lights, bool floor = true) {
   invr::v1::Scene s = zooScene("knot");
   s.mutable_film()->set_width(64);
   s.mutable_film()->set_height(48);
-  if (fillsOnly) {
-    invr::v1::Scene kept = s;
+  invr::v1::Scene kept = s;
+  kept.clear_shapes();
+  for (const auto& sh : s.shapes())
+    if (floor || sh.name() != "floor") *kept.add_shapes() = sh;
+  if (lights != KnotLights::SpotAndFills) {
     kept.clear_lights();
     for (const auto& l : s.lights()) {
       if (l.has_spot()) continue;
@@ -545,14 +553,20 @@ std::unique_ptr<Scene> knotScene(bool fillsOnly) {
       i->set_r(i->r() * 12);
       i->set_g(i->g() * 12);
       i->set_b(i->b() * 12);
+      if (lights == KnotLights::BesideCamera) {
+        auto* at = p->mutable_point()->mutable_position();
+        at->set_x(0.5);
+        at->set_y(1.6);
+        at->set_z(3.0);
+        break;
+      }
     }
-    s = kept;
   }
-  return buildScene(s);
+  return buildScene(kept);
 }
 
 TEST(ShapeGradient, KnotUnderASpotAndPointFills) {
-  ShapeCase c(knotScene(false), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
+  ShapeCase c(knotScene(KnotLights::SpotAndFills), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
   const MeanSE fd = validatedFd(c, 0, 0.005f, "knot x, spot and fills");
   GradientOptions pt = shapeOptions(GradientMethod::Pt);
   pt.boundary.samples = 32768;
@@ -572,7 +586,7 @@ TEST(ShapeGradient, KnotUnderASpotAndPointFills) {
 // The same knot under the two point fills alone, brightened: the point lights' borders (on the
 // floor and on the knot itself) are a tenth of the derivative here.
 TEST(ShapeGradient, KnotUnderPointLightsOnly) {
-  ShapeCase c(knotScene(true), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
+  ShapeCase c(knotScene(KnotLights::Fills), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
   const MeanSE fd = validatedFd(c, 0, 0.005f, "knot x, point fills");
   for (GradientMethod m : {GradientMethod::Pt, GradientMethod::Restir}) {
     GradientOptions o = shapeOptions(m);
@@ -580,6 +594,40 @@ TEST(ShapeGradient, KnotUnderPointLightsOnly) {
     const std::string what = std::string("knot x, point fills, ") + gradientMethodName(m);
     expectMatches(run(c, 0, fd, o, 96, what.c_str()), what.c_str());
   }
+}
+
+// Diagnosis of the knot's excess (docs/differentiable-rendering.md, "The knot's excess"): not run
+// by ctest (about 20 minutes each at the documented session counts). Each prints FD and the PT
+// estimate with every term and with terms left out, for the point fills with or without the floor,
+// and for one point light beside the camera. Sessions per estimate: INVR_KNOT_SESSIONS (default
+// 256). Run all three with
+//   build/bin/test_diff --gtest_also_run_disabled_tests --gtest_filter='ShapeGradient.DISABLED_KnotExcess*'
+int knotDiagnosisSessions() {
+  const char* v = std::getenv("INVR_KNOT_SESSIONS");
+  return v && std::atoi(v) > 0 ? std::atoi(v) : 256;
+}
+
+void diagnoseKnot(KnotLights lights, bool floor, const char* what) {
+  ShapeCase c(knotScene(lights, floor), "shapes/knot/translation", {0.06f, -0.04f, 0.05f});
+  const MeanSE fd = validatedFd(c, 0, 0.005f, what, 64);
+  const int sessions = knotDiagnosisSessions();
+  std::printf("%d sessions per estimate\n", sessions);
+  GradientOptions all = shapeOptions(GradientMethod::Pt);
+  all.boundary.samples = 16384;
+  const Check r = run(c, 0, fd, all, sessions, "pt, every term");
+  std::printf("  difference %+.2f %% (%.1f SE)\n", 100 * (r.est.mean - fd.mean) / fd.mean, (r.est.mean - fd.mean) / r.combined());
+  GradientOptions noPrimary = all;
+  noPrimary.boundary.primary = false;
+  run(c, 0, fd, noPrimary, sessions, "pt, without the primary term");
+  GradientOptions noSecondary = all;
+  noSecondary.boundary.secondary = false;
+  run(c, 0, fd, noSecondary, sessions, "pt, without the border terms");
+}
+
+TEST(ShapeGradient, DISABLED_KnotExcessPointFillsFloor) { diagnoseKnot(KnotLights::Fills, true, "knot x, point fills, floor"); }
+TEST(ShapeGradient, DISABLED_KnotExcessPointFillsNoFloor) { diagnoseKnot(KnotLights::Fills, false, "knot x, point fills, no floor"); }
+TEST(ShapeGradient, DISABLED_KnotExcessLightBesideCameraNoFloor) {
+  diagnoseKnot(KnotLights::BesideCamera, false, "knot x, one point light beside the camera, no floor");
 }
 
 TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {

@@ -8,6 +8,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "test_util.h"
 
 namespace invr {
 namespace {
@@ -31,22 +32,12 @@ void expectClosedOriented(const TriangleMesh& m, const std::string& what) {
   }
 }
 
-// Outward orientation: the signed volume (divergence theorem) is positive.
-double signedVolume(const TriangleMesh& m) {
-  double v = 0;
-  for (size_t t = 0; t < m.triangleCount(); ++t) {
-    Vec3 a = m.positions[m.indices[3 * t]], b = m.positions[m.indices[3 * t + 1]], c = m.positions[m.indices[3 * t + 2]];
-    v += dot(a, cross(b, c)) / 6.0;
-  }
-  return v;
-}
-
 TEST(Mesh, PrimitivesAreClosedAndOutward) {
   TriangleMesh box = makeBox(), sphere = makeSphere(16), cyl = makeCylinder(32, true), knot = makeTorusKnot(2, 3, 0.15f, 128, 12);
-  EXPECT_NEAR(signedVolume(box), 8.0, 1e-4);
-  EXPECT_NEAR(signedVolume(sphere), 4.0 / 3.0 * M_PI, 0.1);  // 16 rings: -1.6 % tessellation loss
-  EXPECT_NEAR(signedVolume(cyl), 2 * M_PI, 0.05);
-  EXPECT_GT(signedVolume(knot), 0.0);
+  EXPECT_NEAR(test::signedVolume(box), 8.0, 1e-4);
+  EXPECT_NEAR(test::signedVolume(sphere), 4.0 / 3.0 * M_PI, 0.1);  // 16 rings: -1.6 % tessellation loss
+  EXPECT_NEAR(test::signedVolume(cyl), 2 * M_PI, 0.05);
+  EXPECT_GT(test::signedVolume(knot), 0.0);
   expectClosedOriented(box, "box");
   expectClosedOriented(cyl, "cylinder");
   expectClosedOriented(knot, "torus knot");

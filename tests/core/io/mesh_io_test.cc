@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/limits.h"
+#include "test_util.h"
 
 namespace invr {
 namespace {
@@ -23,30 +24,20 @@ std::filesystem::path tmp(const std::string& name) {
   return dir / name;
 }
 
-// Outward orientation: the signed volume (divergence theorem) is positive.
-double signedVolume(const TriangleMesh& m) {
-  double v = 0;
-  for (size_t t = 0; t < m.triangleCount(); ++t) {
-    Vec3 a = m.positions[m.indices[3 * t]], b = m.positions[m.indices[3 * t + 1]], c = m.positions[m.indices[3 * t + 2]];
-    v += dot(a, cross(b, c)) / 6.0;
-  }
-  return v;
-}
-
 TEST(MeshIo, LoadsObjAndPly) {
   std::ofstream(tmp("tet.obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\n"
                                    "f 1/1 3/3 2/2\nf 1/1 2/2 4/3\nf 1/1 4/3 3/3\nf 2/2 3/3 4/3\n";
   TriangleMesh obj = loadMesh(tmp("tet.obj"));
   EXPECT_EQ(obj.triangleCount(), 4u);
   EXPECT_EQ(obj.uvs.size(), obj.positions.size());
-  EXPECT_NEAR(signedVolume(obj), 1.0 / 6.0, 1e-6);
+  EXPECT_NEAR(test::signedVolume(obj), 1.0 / 6.0, 1e-6);
 
   std::ofstream(tmp("tet.ply")) << "ply\nformat ascii 1.0\ncomment test\nelement vertex 4\nproperty float x\nproperty float y\n"
                                    "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
                                    "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
   TriangleMesh ply = loadMesh(tmp("tet.ply"));
   EXPECT_EQ(ply.triangleCount(), 4u);
-  EXPECT_NEAR(signedVolume(ply), 1.0 / 6.0, 1e-6);
+  EXPECT_NEAR(test::signedVolume(ply), 1.0 / 6.0, 1e-6);
 
   // Binary little-endian with a quad face (triangulated) and an extra element to skip.
   {

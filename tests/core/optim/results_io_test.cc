@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -109,6 +110,52 @@ TEST(ResultsIo, NonFiniteValuesStayValidJson) {
   nlohmann::json js;
   ASSERT_NO_THROW(js = readJson(dir.path / "parameters.json"));
   EXPECT_EQ(js.at("lights/l/intensity"), nlohmann::json::parse("[null, null, 1.0]"));
+}
+
+// Each column once (the statistics' own loss is the row's loss column), every row as wide as the
+// header, and a boundary term's columns present from the first row that has it (blank before).
+TEST(ResultsIo, ConvergenceCsvHasEachColumnOnceAndRowsAsWideAsTheHeader) {
+  TempDir dir;
+  ConvergenceCsv csv(dir.path / "convergence.csv");
+  invr::v1::GradientStats a;
+  a.set_loss(0.25);
+  a.set_seconds_primal(1.5);
+  a.mutable_rays()->set_camera(7);
+  ConvergenceRow first{"restir", 1, 2.0, 0.25, 0.5, 0.125, a};
+  invr::v1::GradientStats b = a;
+  (*b.mutable_boundary())["primary"].set_samples(3072);
+  ConvergenceRow second{"restir", 2, 4.0, 0.125, 0.25, 0.0625, b};
+  csv.add(first);
+  csv.add(second);
+  csv.write();
+  std::stringstream text(readText(dir.path / "convergence.csv"));
+  auto cellsOf = [](const std::string& line) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) cells.push_back(c);
+    if (!line.empty() && line.back() == ',') cells.push_back("");
+    return cells;
+  };
+  std::string line;
+  ASSERT_TRUE(std::getline(text, line));
+  std::vector<std::string> header = cellsOf(line);
+  ASSERT_GE(header.size(), 6u);
+  EXPECT_EQ(std::vector<std::string>(header.begin(), header.begin() + 6),
+            (std::vector<std::string>{"method", "step", "seconds", "loss", "param_error", "image_error"}));
+  std::map<std::string, size_t> column;
+  for (size_t i = 0; i < header.size(); ++i) EXPECT_TRUE(column.emplace(header[i], i).second) << "column '" << header[i] << "' twice";
+  ASSERT_TRUE(column.count("seconds_primal") && column.count("rays.camera") && column.count("boundary.primary.samples"));
+  std::vector<std::vector<std::string>> rows;
+  while (std::getline(text, line)) rows.push_back(cellsOf(line));
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& r : rows) ASSERT_EQ(r.size(), header.size());
+  EXPECT_EQ(rows[0][column["loss"]], "0.25");
+  EXPECT_EQ(rows[0][column["seconds_primal"]], "1.5");
+  EXPECT_EQ(rows[0][column["rays.camera"]], "7");
+  EXPECT_EQ(rows[0][column["boundary.primary.samples"]], "");
+  EXPECT_EQ(rows[1][column["boundary.primary.samples"]], "3072");
+  EXPECT_EQ(rows[1][column["image_error"]], "0.0625");
 }
 
 }  // namespace
