@@ -7,7 +7,6 @@
 
 namespace invr {
 
-namespace v1 = invr::v1;
 namespace pb = google::protobuf;
 
 void setRayCounts(v1::GradientStats& stats, const RayStats& rays) {
