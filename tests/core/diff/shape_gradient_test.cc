@@ -582,8 +582,9 @@ TEST(ShapeGradient, EdgeReservoirsMadeBeforeARotation) {
 // only, so every shadow border goes to delta_shadow_boundary). `Fills` drops the spot and
 // brightens the fills, so the point lights' borders carry the derivative; `BesideCamera` keeps one
 // of them, moved 0.5 right of and 0.4 above the eye (0, 1.2, 3.0), where the knot's shadows on
-// itself are thin.
-enum class KnotLights { SpotAndFills, Fills, BesideCamera };
+// itself are thin. `FrontFill` and `BackFill` keep one fill where it is: fill_a in front of the
+// knot at its side, fill_b behind it.
+enum class KnotLights { SpotAndFills, Fills, BesideCamera, FrontFill, BackFill };
 
 std::unique_ptr<Scene> knotScene(KnotLights lights, bool floor = true) {
   invr::v1::Scene s = zooScene("knot");
@@ -597,6 +598,7 @@ std::unique_ptr<Scene> knotScene(KnotLights lights, bool floor = true) {
     kept.clear_lights();
     for (const auto& l : s.lights()) {
       if (l.has_spot()) continue;
+      if ((lights == KnotLights::FrontFill && l.name() != "fill_a") || (lights == KnotLights::BackFill && l.name() != "fill_b")) continue;
       auto* p = kept.add_lights();
       *p = l;
       auto* i = p->mutable_point()->mutable_intensity();
@@ -649,8 +651,8 @@ TEST(ShapeGradient, KnotUnderPointLightsOnly) {
 // Diagnosis of the knot's excess (docs/differentiable-rendering.md, "The knot's excess"): not run
 // by ctest (about 20 minutes each at the documented session counts). Each prints FD and the PT
 // estimate with every term and with terms left out, for the point fills with or without the floor,
-// and for one point light beside the camera. Sessions per estimate: INVR_KNOT_SESSIONS (default
-// 256). Run all three with
+// for each fill alone where it is, and for one point light beside the camera. Sessions per
+// estimate: INVR_KNOT_SESSIONS (default 256). Run them all with
 //   build/bin/test_diff --gtest_also_run_disabled_tests --gtest_filter='ShapeGradient.DISABLED_KnotExcess*'
 int knotDiagnosisSessions() {
   const char* v = std::getenv("INVR_KNOT_SESSIONS");
@@ -676,6 +678,8 @@ void diagnoseKnot(KnotLights lights, bool floor, const char* what) {
 
 TEST(ShapeGradient, DISABLED_KnotExcessPointFillsFloor) { diagnoseKnot(KnotLights::Fills, true, "knot x, point fills, floor"); }
 TEST(ShapeGradient, DISABLED_KnotExcessPointFillsNoFloor) { diagnoseKnot(KnotLights::Fills, false, "knot x, point fills, no floor"); }
+TEST(ShapeGradient, DISABLED_KnotExcessFrontFillNoFloor) { diagnoseKnot(KnotLights::FrontFill, false, "knot x, the front fill alone, no floor"); }
+TEST(ShapeGradient, DISABLED_KnotExcessBackFillNoFloor) { diagnoseKnot(KnotLights::BackFill, false, "knot x, the back fill alone, no floor"); }
 TEST(ShapeGradient, DISABLED_KnotExcessLightBesideCameraNoFloor) {
   diagnoseKnot(KnotLights::BesideCamera, false, "knot x, one point light beside the camera, no floor");
 }
