@@ -69,7 +69,7 @@ void runOptimize(const OptimizeArgs& a) {
   }
   csv.write();
   bar.finish();
-  writeParameters(dir, problem.params, result.theta);
+  writeParameters(dir, problem.params, result.theta, *problem.scene);
   try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
     // Sampling parameters have no ground truth: chart the loss instead.
     const bool truth = parameterError(problem, problem.initial) >= 0;

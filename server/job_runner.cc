@@ -273,7 +273,7 @@ void JobRunner::fail(Context& c, const std::string& reason) {
   // The last good parameters stay fetchable, next to the log.
   if (c.problemBuilt && c.haveCheckpoint && c.p.params.size() == size_t(c.ck.theta_size())) {
     try {
-      files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()));
+      files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()), *c.p.scene);
     } catch (const std::exception&) {
     }
   }
@@ -286,7 +286,7 @@ void JobRunner::writeResults(Context& c) {
   Problem& p = c.p;
   auto dir = store_.resultsDir(id);
   std::filesystem::create_directories(dir);
-  std::vector<std::string> files = writeParameters(dir, p.params, c.theta);
+  std::vector<std::string> files = writeParameters(dir, p.params, c.theta, *p.scene);
   {
     // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
     ConvergenceCsv csv(dir / "convergence.csv");

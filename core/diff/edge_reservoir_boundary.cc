@@ -205,7 +205,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
     const EdgeRef ref = edges_[k];
     const MeshEdge& e = topology_[ref.mesh].edges()[ref.edge];
     const TriangleMesh& mesh = scene_.meshes[ref.mesh];
-    const ShadowEdge se{0, ref.mesh, mesh.positions[e.v0], mesh.positions[e.v1]};
+    const ShadowEdge se{0, ref.mesh, mesh.positions[e.v0], mesh.positions[e.v1], e.v0, e.v1};
     r.mesh = ref.mesh;
     r.edge = ref.edge;
     r.t = t;

@@ -57,7 +57,10 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
   boundaryTerms_ = boundaryTermsFor(scene, params, opt_);
   // Occluders need not move to cast a moving shadow (a moving receiver drags it): every mesh.
   if (params.hasShapeParameters())
-    for (const TriangleMesh& m : scene.meshes) topology_.push_back(EdgeTopology::build(m));
+    for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+      topology_.push_back(EdgeTopology::build(scene.meshes[m]));
+      if (params.deforms(m)) topology_.back().markEveryEdgeACrease();
+    }
 }
 
 GradientEngine::~GradientEngine() = default;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/geometry/edge_topology.h"
 
 namespace invr {
 
@@ -70,6 +71,10 @@ std::string invrParameterName(const Scene& scene, const std::string& name) {
     if (k != owner.size()) return fail("no bsdf property at '" + name + "'");
     return "materials/" + material + (prop == "alpha" ? "/roughness" : "/albedo");
   }
+  if (prop == "vertex_positions" || prop == "positions") {  // mi.traverse: a mesh's vertex buffer
+    if (owner.size() != 1 || shapeIndex(owner[0]) < 0) return fail("no shape (mesh) with id '" + owner[0] + "'");
+    return "shapes/" + owner[0] + "/vertices";
+  }
   if (prop == "radiance" || prop == "intensity") {
     if (owner.size() == 1 && lightIndex(scene, owner[0]) >= 0) return "lights/" + owner[0] + "/intensity";
     // <shape id>.emitter: the area light on that shape.
@@ -81,7 +86,7 @@ std::string invrParameterName(const Scene& scene, const std::string& name) {
     }
     return fail("no emitter with id '" + owner[0] + "'");
   }
-  return fail("property '" + prop + "' has no invr parameter (reflectance, diffuse_reflectance and alpha of a bsdf; radiance or intensity of an emitter)");
+  return fail("property '" + prop + "' has no invr parameter (reflectance, diffuse_reflectance and alpha of a bsdf; radiance or intensity of an emitter; vertex_positions or positions of a mesh)");
 }
 
 const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::string& givenName, const ParameterOptions& o) {
@@ -94,7 +99,7 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   if (!parts.empty() && parts[0] == "sampling") return addSampling(scene, givenName, parts, o);
   if (!parts.empty() && (parts[0] == "shapes" || parts[0] == "groups")) return addShape(scene, givenName, parts, o);
   if (parts.size() != 3)
-    return fail("expected materials/<name>/albedo|roughness, lights/<name>/intensity, shapes/<name>/translation|rotation|scale, "
+    return fail("expected materials/<name>/albedo|roughness, lights/<name>/intensity, shapes/<name>/translation|rotation|scale|vertices, "
                 "groups/<name>/translation|rotation|scale or sampling/...");
   ParameterSlot slot;
   slot.name = givenName;
@@ -159,6 +164,12 @@ void ParameterRegistry::applyOptions(ParameterSlot& slot, const ParameterOptions
   if (o.lower) slot.lower = *o.lower;
   if (o.upper) slot.upper = *o.upper;
   if (o.learningRate) slot.learningRate = *o.learningRate;
+  if (o.largeStepsLambda) {
+    if (slot.kind != ParamKind::ShapeVertices) fail("large_steps_lambda applies to vertex parameters (shapes/<name>/vertices) only");
+    if (!(*o.largeStepsLambda >= 0.f) || !std::isfinite(*o.largeStepsLambda))
+      fail("large_steps_lambda must be a finite number >= 0 (got " + std::to_string(*o.largeStepsLambda) + ")");
+    slot.largeStepsLambda = *o.largeStepsLambda;
+  }
   if (!(slot.lower <= slot.upper)) fail("bounds are inverted (lower " + std::to_string(slot.lower) + " > upper " + std::to_string(slot.upper) + ")");
   if (!(slot.learningRate > 0.f) || !std::isfinite(slot.learningRate)) fail("learning rate must be a positive finite number");
 }
@@ -230,7 +241,17 @@ const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::
   auto fail = [&](const std::string& why) -> const ParameterSlot& { throw InputError("parameter '" + givenName + "': " + why); };
   const bool isGroup = parts[0] == "groups";
   const std::string what = isGroup ? "group" : "shape";
-  if (parts.size() != 3) return fail("expected " + parts[0] + "/<name>/translation, rotation or scale");
+  const std::string usage = "expected " + parts[0] +
+                            (isGroup ? "/<name>/translation, rotation or scale" : "/<name>/translation, rotation, scale or vertices") +
+                            ", or one component: " + parts[0] + "/<name>/translation/x (or y, z), .../rotation/x (or y, z)";
+  if (parts.size() != 3 && parts.size() != 4) return fail(usage);
+  // One component of a translation or rotation on its own: the degrees of freedom a problem has.
+  int component = -1;
+  if (parts.size() == 4) {
+    if ((parts[2] != "translation" && parts[2] != "rotation") || parts[3].size() != 1 || parts[3][0] < 'x' || parts[3][0] > 'z')
+      return fail(usage);
+    component = parts[3][0] - 'x';
+  }
   ParameterSlot slot;
   slot.name = givenName;
   std::vector<uint32_t> meshes;
@@ -249,6 +270,16 @@ const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::
     if (scene.meshLight[m] >= 0)
       return fail("shape '" + scene.meshNames[m] + "' emits light ('" + scene.lights[size_t(scene.meshLight[m])].name +
                   "'): moving emitters is not supported yet");
+  // A mesh moves either rigidly or vertex by vertex.
+  for (uint32_t m : meshes) {
+    if (deforms(m) && parts[2] == "vertices") return fail("the vertices of shape '" + scene.meshNames[m] + "' are listed twice");
+    if (deforms(m))
+      return fail("shape '" + scene.meshNames[m] + "' has its vertices as a parameter; a pose parameter cannot move it too (move the vertices)");
+  }
+  if (parts[2] == "vertices") {
+    if (isGroup) return fail("vertices are a parameter of a shape, not of a group (shapes/<name>/vertices)");
+    return addVertices(scene, givenName, uint32_t(slot.shape), o);
+  }
   int firstField = 0;
   if (parts[2] == "translation") {
     slot.kind = ParamKind::ShapeTranslation;
@@ -271,10 +302,16 @@ const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::
     slot.learningRate = 0.01f;
     firstField = 6;
   } else {
-    return fail("unknown " + what + " property '" + parts[2] + "' (use translation, rotation or scale)");
+    return fail("unknown " + what + " property '" + parts[2] + (isGroup ? "' (use translation, rotation or scale)" : "' (use translation, rotation, scale or vertices)"));
+  }
+  if (component >= 0) {
+    slot.channels = 1;
+    slot.component = component;
+    firstField += component;
   }
   for (const auto& other : slots_)
-    if (other.kind == slot.kind && other.shape == slot.shape && other.group == slot.group)
+    if (other.kind == slot.kind && other.shape == slot.shape && other.group == slot.group &&
+        (other.component < 0 || slot.component < 0 || other.component == slot.component))
       return fail("the same value as parameter '" + other.name + "', listed twice");
   slot.size = uint32_t(slot.channels);
   applyOptions(slot, o);
@@ -283,12 +320,121 @@ const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::
   for (uint32_t m : meshes) {
     for (int c = 0; c < slot.channels; ++c)
       meshFields_[m].push_back({slot.offset + uint32_t(c), firstField + c + (isGroup ? RigidMotion::kComponents : 0)});
-    if (std::find(movingMeshes_.begin(), movingMeshes_.end(), m) == movingMeshes_.end()) movingMeshes_.push_back(m);
+    if (std::find(rigidMeshes_.begin(), rigidMeshes_.end(), m) == rigidMeshes_.end()) rigidMeshes_.push_back(m);
+    markMoving(scene, m);
   }
-  std::sort(movingMeshes_.begin(), movingMeshes_.end());
+  std::sort(rigidMeshes_.begin(), rigidMeshes_.end());
   size_ += slot.size;
   slots_.push_back(slot);
   return slots_.back();
+}
+
+void ParameterRegistry::markMoving(const Scene& scene, uint32_t m) {
+  if (moving_.size() < scene.meshes.size()) moving_.resize(scene.meshes.size(), 0);
+  if (moving_[m]) return;
+  moving_[m] = 1;
+  movingMeshes_.insert(std::lower_bound(movingMeshes_.begin(), movingMeshes_.end(), m), m);
+}
+
+const ParameterSlot& ParameterRegistry::addVertices(const Scene& scene, const std::string& givenName, uint32_t mesh, const ParameterOptions& o) {
+  auto fail = [&](const std::string& why) -> const ParameterSlot& { throw InputError("parameter '" + givenName + "': " + why); };
+  if (moves(mesh))
+    return fail("shape '" + scene.meshNames[mesh] + "' already moves with a pose parameter (shapes/.../translation, rotation, scale or its group's); "
+                "a mesh moves rigidly or vertex by vertex, not both");
+  const TriangleMesh& m = scene.meshes[mesh];
+  if (m.positions.empty()) return fail("shape '" + scene.meshNames[mesh] + "' has no vertices");
+  // Copies of a vertex at uv or normal seams move as one, or the seams would open: the parameter
+  // has one vertex per welded position, welded as the edge topology welds (edge_topology.h).
+  const EdgeTopology topology = EdgeTopology::build(m);
+  VertexField field;
+  field.weld.resize(m.positions.size());
+  field.representative.assign(topology.weldedVertices(), UINT32_MAX);
+  for (uint32_t v = 0; v < m.positions.size(); ++v) {
+    const uint32_t w = topology.welded(v);
+    field.weld[v] = w;
+    if (field.representative[w] == UINT32_MAX) field.representative[w] = v;
+  }
+  for (const MeshEdge& e : topology.edges()) field.edges.emplace_back(topology.welded(e.v0), topology.welded(e.v1));
+  ParameterSlot slot;
+  slot.name = givenName;
+  slot.kind = ParamKind::ShapeVertices;
+  slot.shape = int(mesh);
+  slot.channels = 3;
+  slot.size = uint32_t(3 * field.representative.size());
+  slot.offset = uint32_t(size_);
+  slot.lower = -std::numeric_limits<float>::infinity();
+  slot.upper = std::numeric_limits<float>::infinity();
+  // A step of a thousandth of the scene's size: vertices move in the scene's units.
+  slot.learningRate = 1e-3f * 2.f * scene.radius;
+  applyOptions(slot, o);
+  field.offset = slot.offset;
+  if (vertexField_.size() < scene.meshes.size()) vertexField_.resize(scene.meshes.size(), -1);
+  vertexField_[mesh] = int(vertexFields_.size());
+  vertexFields_.push_back(std::move(field));
+  markMoving(scene, mesh);
+  size_ += slot.size;
+  slots_.push_back(slot);
+  return slots_.back();
+}
+
+TriangleMesh ParameterRegistry::vertexMesh(const Scene& scene, const ParameterSlot& slot, const float* values) const {
+  const VertexField& f = vertexFields_[size_t(vertexField_[size_t(slot.shape)])];
+  TriangleMesh out;
+  out.positions.resize(f.representative.size());
+  for (size_t w = 0; w < out.positions.size(); ++w) out.positions[w] = Vec3(values[3 * w], values[3 * w + 1], values[3 * w + 2]);
+  const TriangleMesh& m = scene.meshes[size_t(slot.shape)];
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    const uint32_t a = f.weld[m.indices[3 * t]], b = f.weld[m.indices[3 * t + 1]], c = f.weld[m.indices[3 * t + 2]];
+    if (a == b || b == c || a == c) continue;
+    out.indices.insert(out.indices.end(), {a, b, c});
+  }
+  return out;
+}
+
+void ParameterRegistry::addHitGradient(const Scene& scene, const SurfaceHit& hit, Vec3 dLdp, Vec3 dLdn, PathGradient& grad) const {
+  if (!moves(hit.mesh)) return;
+  const bool normal = !(dLdn == Vec3(0.f));
+  if (!deforms(hit.mesh)) {
+    addPointGradient(scene, hit.mesh, hit.p, dLdp, grad);
+    if (normal) addNormalGradient(scene, hit.mesh, hit.ns, dLdn, grad);
+    return;
+  }
+  const VertexField& f = vertexFields_[size_t(vertexField_[hit.mesh])];
+  const TriangleMesh& m = scene.meshes[hit.mesh];
+  const uint32_t* idx = &m.indices[3 * size_t(hit.tri)];
+  auto add = [&](uint32_t v, Vec3 g) {
+    const uint32_t base = f.offset + 3 * f.weld[v];
+    for (uint32_t c = 0; c < 3; ++c)
+      if (g[int(c)] != 0.f) grad.add(base + c, g[int(c)]);
+  };
+  // p = b0 a + b1 b + b2 c: dp/dv_i = b_i.
+  const float b[3] = {1.f - hit.b1 - hit.b2, hit.b1, hit.b2};
+  Vec3 gv[3] = {dLdp * b[0], dLdp * b[1], dLdp * b[2]};
+  if (normal) {
+    // ns = ng = N / |N|, N = (b - a) x (c - a) (flat shading): dN for a move d of vertex i is
+    // d x (v_{i+1} - v_{i+2}), so dLoss/dv_i = (v_{i+1} - v_{i+2}) x q with q = (I - n n^T) dLdn / |N|.
+    const Vec3 p[3] = {m.positions[idx[0]], m.positions[idx[1]], m.positions[idx[2]]};
+    const Vec3 N = cross(p[1] - p[0], p[2] - p[0]);
+    const float len = length(N);
+    if (len > 0.f) {
+      const Vec3 n = N / len;
+      const Vec3 q = (dLdn - n * dot(n, dLdn)) / len;
+      for (int i = 0; i < 3; ++i) gv[i] = gv[i] + cross(p[(i + 1) % 3] - p[(i + 2) % 3], q);
+    }
+  }
+  for (int i = 0; i < 3; ++i) add(idx[i], gv[i]);
+}
+
+void ParameterRegistry::addEdgeGradient(const Scene& scene, uint32_t mesh, uint32_t v0, uint32_t v1, float t, Vec3 p, Vec3 dLdp,
+                                        PathGradient& grad) const {
+  if (!moves(mesh)) return;
+  if (!deforms(mesh)) return addPointGradient(scene, mesh, p, dLdp, grad);
+  const VertexField& f = vertexFields_[size_t(vertexField_[mesh])];
+  for (const auto& [v, w] : {std::pair{v0, 1.f - t}, std::pair{v1, t}}) {
+    const uint32_t base = f.offset + 3 * f.weld[v];
+    for (uint32_t c = 0; c < 3; ++c)
+      if (dLdp[int(c)] != 0.f && w != 0.f) grad.add(base + c, dLdp[int(c)] * w);
+  }
 }
 
 void ParameterRegistry::addPointGradient(const Scene& scene, uint32_t mesh, Vec3 p, Vec3 dLdp, PathGradient& grad) const {
@@ -313,6 +459,13 @@ std::vector<float> ParameterRegistry::read(const Scene& scene) const {
     float* out = theta.data() + s.offset;
     if (readSampling(scene, s, out)) continue;
     if (readShape(scene, s, out)) continue;
+    if (s.kind == ParamKind::ShapeVertices) {
+      const VertexField& f = vertexFields_[size_t(vertexField_[size_t(s.shape)])];
+      const auto& pos = scene.meshes[size_t(s.shape)].positions;
+      for (size_t w = 0; w < f.representative.size(); ++w)
+        for (int c = 0; c < 3; ++c) out[3 * w + size_t(c)] = pos[f.representative[w]][c];
+      continue;
+    }
     if (s.kind == ParamKind::LightIntensity) {
       const Light& l = scene.lights[size_t(s.light)];
       Rgb v = (l.kind == LightKind::Point || l.kind == LightKind::Spot) ? l.intensity : l.radiance;
@@ -352,11 +505,22 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
         continue;
       }
       case ParamKind::Survival: scene.sampling.survival.assign(in, in + s.size); continue;
+      case ParamKind::ShapeVertices: {
+        const VertexField& f = vertexFields_[size_t(vertexField_[size_t(s.shape)])];
+        std::vector<Vec3> positions(f.weld.size());
+        for (size_t v = 0; v < positions.size(); ++v) {
+          const float* xyz = in + 3 * size_t(f.weld[v]);
+          positions[v] = Vec3(xyz[0], xyz[1], xyz[2]);
+        }
+        scene.deformMesh(uint32_t(s.shape), positions);
+        continue;
+      }
       case ParamKind::ShapeTranslation:
       case ParamKind::ShapeRotation:
       case ParamKind::ShapeScale: {
         RigidMotion& m = s.group >= 0 ? scene.motion.group(uint32_t(s.group)) : scene.motion.mesh(uint32_t(s.shape));
-        if (s.kind == ParamKind::ShapeTranslation) m.translation = Vec3(in[0], in[1], in[2]);
+        if (s.component >= 0) (s.kind == ParamKind::ShapeTranslation ? m.translation : m.rotationDegrees)[s.component] = in[0];
+        else if (s.kind == ParamKind::ShapeTranslation) m.translation = Vec3(in[0], in[1], in[2]);
         else if (s.kind == ParamKind::ShapeRotation) m.rotationDegrees = Vec3(in[0], in[1], in[2]);
         else m.scale = in[0];
         continue;
@@ -383,7 +547,7 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
       for (int x = 0; x < s.width; ++x)
         for (int c = 0; c < im.channels(); ++c) im.at(x, y, c) = in[(y * s.width + x) * s.channels + std::min(c, s.channels - 1)] * inv;
   }
-  if (!movingMeshes_.empty()) scene.applyShapeMotion(movingMeshes_);
+  if (!rigidMeshes_.empty()) scene.applyShapeMotion(rigidMeshes_);
   // Logits are sampling itself: always applied. Power-based selection follows emission unless
   // the caller keeps sampling fixed.
   if (selectionChanged || (emissionChanged && refreshSampling)) scene.updateLightSelection();
@@ -398,7 +562,9 @@ bool ParameterRegistry::readShape(const Scene& scene, const ParameterSlot& s, fl
   if (s.kind != ParamKind::ShapeTranslation && s.kind != ParamKind::ShapeRotation && s.kind != ParamKind::ShapeScale) return false;
   const RigidMotion& m = s.group >= 0 ? scene.motion.group(uint32_t(s.group)) : scene.motion.mesh(uint32_t(s.shape));
   Vec3 v = s.kind == ParamKind::ShapeTranslation ? m.translation : s.kind == ParamKind::ShapeRotation ? m.rotationDegrees : Vec3(m.scale);
-  for (int c = 0; c < s.channels; ++c) out[c] = v[c];
+  if (s.component >= 0) out[0] = v[s.component];
+  else
+    for (int c = 0; c < s.channels; ++c) out[c] = v[c];
   return true;
 }
 

@@ -7,8 +7,14 @@
 //   shapes/<name>/translation   x, y, z: 3 values, starting at 0
 //   shapes/<name>/rotation      Euler degrees about x, then y, then z: 3 values, starting at 0
 //   shapes/<name>/scale         uniform: 1 value, starting at 1
+//   shapes/<name>/translation/x (y, z), shapes/<name>/rotation/x (y, z)   one component alone
 //   groups/<name>/translation|rotation|scale   the same for a group of shapes (applied after the
 //                                               members' own)
+//   shapes/<name>/vertices      x, y, z of every vertex (vertices at one position, the copies at
+//                               uv or normal seams, are one vertex: 3 values each), in world space,
+//                               starting at the mesh as described. Not with the shape's (or its
+//                               group's) pose parameters. Flat-shaded meshes only.
+//                               Mitsuba: <id>.vertex_positions, <id>.positions.
 // Sampling parameters (Yan et al. 2024; they change a render's noise, never its mean):
 //   sampling/light_logits                 one logit per light: NEE picks lights by their softmax
 //   sampling/pixel_light_logits/<view>    per cell of a map over view <view>'s film: one logit per light
@@ -21,6 +27,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/diff/gradient_sink.h"
@@ -28,7 +35,7 @@
 
 namespace invr {
 
-enum class ParamKind { Albedo, Roughness, LightIntensity, LightLogits, PixelLightLogits, Survival, ShapeTranslation, ShapeRotation, ShapeScale };
+enum class ParamKind { Albedo, Roughness, LightIntensity, LightLogits, PixelLightLogits, Survival, ShapeTranslation, ShapeRotation, ShapeScale, ShapeVertices };
 
 // Default lower bound of albedos and light intensities. Above zero so that optimisation never
 // changes where a light sample's target is positive: ReSTIR's normalisation (Z) counts the reused
@@ -44,13 +51,17 @@ struct ParameterSlot {
   int material = -1, light = -1;
   int view = -1;  // PixelLightLogits
   int shape = -1, group = -1;  // shape parameters: the mesh or the group they move
+  int component = -1;          // one component of a translation or rotation (0 x, 1 y, 2 z), or -1: all three
   int width = 0, height = 0;  // texture resolution; 0 for constants
   float lower = 0.f, upper = 1.f;
   float learningRate = 0.01f;
+  // Vertex parameters: Large Steps' lambda (core/optim/large_steps.h); 0 optimises x itself.
+  float largeStepsLambda = 0.f;
 };
 
 struct ParameterOptions {
   std::optional<float> lower, upper, learningRate;
+  std::optional<float> largeStepsLambda;  // vertex parameters only, >= 0
   int mapWidth = 0, mapHeight = 0;  // PixelLightLogits: the map's resolution (0: the film's)
 };
 
@@ -83,20 +94,32 @@ class ParameterRegistry {
   }
   bool hasSamplingParameters() const { return lightLogits_ >= 0 || survival_ >= 0 || !pixelLogits_.empty(); }
 
-  // Shape parameters: the meshes they move (sorted), and per mesh the theta index of each motion
-  // component that moves it with its velocity field (ShapeMotion: 0-6 own, 7-13 group's).
+  // Shape parameters: the meshes they move (sorted), and per rigidly moving mesh the theta index of
+  // each motion component that moves it with its velocity field (ShapeMotion: 0-6 own, 7-13 group's).
   struct ShapeField {
     uint32_t index;
     int field;
   };
   bool hasShapeParameters() const { return !movingMeshes_.empty(); }
+  // Every mesh a shape parameter moves (rigidly or vertex by vertex), ascending.
   const std::vector<uint32_t>& movingMeshes() const { return movingMeshes_; }
-  bool moves(uint32_t mesh) const { return mesh < meshFields_.size() && !meshFields_[mesh].empty(); }
+  bool moves(uint32_t mesh) const { return mesh < moving_.size() && moving_[mesh]; }
   const std::vector<ShapeField>& shapeFields(uint32_t mesh) const { return meshFields_[mesh]; }
-  // Adds dot(dLdp, dp/dtheta) for a point p of a moving mesh in its current pose (no-op for a
-  // mesh that does not move), and the same for a unit normal n of that mesh.
-  void addPointGradient(const Scene& scene, uint32_t mesh, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
-  void addNormalGradient(const Scene& scene, uint32_t mesh, Vec3 n, Vec3 dLdn, PathGradient& grad) const;
+  // The edges between a vertex parameter's vertices (parameter vertex indices, each edge once).
+  const std::vector<std::pair<uint32_t, uint32_t>>& vertexEdges(const ParameterSlot& slot) const {
+    return vertexFields_[size_t(vertexField_[size_t(slot.shape)])].edges;
+  }
+  // A vertex parameter's mesh at `values` (the slot's part of theta): one vertex per parameter
+  // vertex, the shape's triangles on them (triangles welding collapsed are dropped), no normals.
+  TriangleMesh vertexMesh(const Scene& scene, const ParameterSlot& slot, const float* values) const;
+  // Whether the mesh's vertices are a parameter (shapes/<s>/vertices).
+  bool deforms(uint32_t mesh) const { return mesh < vertexField_.size() && vertexField_[mesh] >= 0; }
+  // The shape-parameter adjoints of the estimators: the derivative of the loss with respect to a
+  // point that moves with a moving mesh, taken to the parameters (no-op for a mesh that does not
+  // move). A surface point (a hit: its triangle and barycentrics) with its unit shading normal:
+  void addHitGradient(const Scene& scene, const SurfaceHit& hit, Vec3 dLdp, Vec3 dLdn, PathGradient& grad) const;
+  // A point p = lerp(v0, v1, t) of the edge between mesh vertices v0 and v1:
+  void addEdgeGradient(const Scene& scene, uint32_t mesh, uint32_t v0, uint32_t v1, float t, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
 
  private:
   const ParameterSlot& addShape(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
@@ -111,8 +134,23 @@ class ParameterRegistry {
   std::vector<int> albedo_, roughness_, intensity_;
   std::vector<int> pixelLogits_;  // per view: index into slots_
   int lightLogits_ = -1, survival_ = -1;
+  const ParameterSlot& addVertices(const Scene& scene, const std::string& givenName, uint32_t mesh, const ParameterOptions& o);
+  // Rigid motion: dot(dLdp, dp/dtheta) for a point p of the mesh, and the same for a unit normal.
+  void addPointGradient(const Scene& scene, uint32_t mesh, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
+  void addNormalGradient(const Scene& scene, uint32_t mesh, Vec3 n, Vec3 dLdn, PathGradient& grad) const;
   std::vector<std::vector<ShapeField>> meshFields_;  // per mesh
-  std::vector<uint32_t> movingMeshes_;
+  std::vector<uint32_t> movingMeshes_, rigidMeshes_;
+  std::vector<uint8_t> moving_;  // per mesh
+  // Vertex parameters: per mesh, index into vertexFields_ or -1.
+  struct VertexField {
+    uint32_t offset = 0;
+    std::vector<uint32_t> weld;            // mesh vertex -> parameter vertex
+    std::vector<uint32_t> representative;  // parameter vertex -> its first mesh vertex
+    std::vector<std::pair<uint32_t, uint32_t>> edges;  // between parameter vertices
+  };
+  std::vector<int> vertexField_;
+  std::vector<VertexField> vertexFields_;
+  void markMoving(const Scene& scene, uint32_t mesh);
   size_t size_ = 0;
 };
 

@@ -17,7 +17,8 @@ struct FilmEdge {
   uint32_t mesh;
   uint32_t face0, face1;  // MeshEdge::kNone for a boundary edge's missing face
   bool silhouette;        // seen from the eye (else a crease between two faces turned to it)
-  Vec3 a, b;
+  Vec3 a, b;  // the edge's ends after clipping at the near plane
+  uint32_t v0, v1;  // the mesh vertices it runs between (vertex parameters take the gradient)
   float za, zb;
   Vec2 fa, fb;  // film positions of a and b (unclipped to the film)
   float s0, s1;
@@ -96,6 +97,8 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
       fe.silhouette = EdgeTopology::silhouetteFrom(e, mesh, normals, cam.eye);
       fe.a = mesh.positions[e.v0];
       fe.b = mesh.positions[e.v1];
+      fe.v0 = e.v0;
+      fe.v1 = e.v1;
       fe.za = dot(fe.a - cam.eye, cam.forward);
       fe.zb = dot(fe.b - cam.eye, cam.forward);
       if (fe.za < zNear && fe.zb < zNear) continue;
@@ -147,7 +150,10 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     if (w == 0.f) return;
     Vec3 dx, dy;
     filmJacobian(cam, P, H, dx, dy);
-    params_.addPointGradient(scene_, e.mesh, P, (dx * n.x + dy * n.y) * w, grad);  // w * n . dfilm/dP
+    // Where P lies on the unclipped edge, for vertex parameters.
+    const Vec3 A = scene_.meshes[e.mesh].positions[e.v0], AB = scene_.meshes[e.mesh].positions[e.v1] - A;
+    const float tEdge = std::clamp(dot(P - A, AB) / dot(AB, AB), 0.f, 1.f);
+    params_.addEdgeGradient(scene_, e.mesh, e.v0, e.v1, tEdge, P, (dx * n.x + dy * n.y) * w, grad);  // w * n . dfilm/dP
   });
   return st;
 }

@@ -37,7 +37,7 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
     for (uint32_t f = 0; f < normals.size(); ++f) normals[f] = scene.faceNormal(m, f);
     for (const MeshEdge& e : topology[m].edges()) {
       if (!EdgeTopology::silhouetteTowards(e, normals, source.from(mesh.positions[e.v0]))) continue;
-      ShadowEdge se{sourceIndex, m, mesh.positions[e.v0], mesh.positions[e.v1]};
+      ShadowEdge se{sourceIndex, m, mesh.positions[e.v0], mesh.positions[e.v1], e.v0, e.v1};
       const float len = length(se.b - se.a);
       if (!(len > 0.f)) continue;
       const Vec3 mid = (se.a + se.b) * 0.5f, dir = -normalize(source.from(mid));
@@ -53,6 +53,7 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
 bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
                        ShadowBorderPoint& bp, RayStats& rays) {
   const int W = scene.width, H = scene.height;
+  bp.t = t;
   bp.e = se.a + (se.b - se.a) * t;
   bp.toE = -source.from(bp.e);
   const float distE = length(bp.toE);
@@ -105,8 +106,8 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
   const Vec3 nr = bp.hit.ng;
   const Vec3 g = (bp.jx * bp.n.x + bp.jy * bp.n.y) * float(w);
   const float c = dot(g, bp.toE) / bp.denom;
-  params.addPointGradient(scene, se.mesh, bp.e, (g - nr * c) * bp.s, grad);
-  params.addPointGradient(scene, bp.hit.mesh, bp.hit.p, nr * c, grad);
+  params.addEdgeGradient(scene, se.mesh, se.v0, se.v1, bp.t, bp.e, (g - nr * c) * bp.s, grad);
+  params.addHitGradient(scene, bp.hit, nr * c, Vec3(0.f), grad);
 }
 
 BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,

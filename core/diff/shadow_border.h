@@ -41,6 +41,7 @@ struct ShadowEdge {
   uint32_t source;  // index into the pass's sources (BorderSource list)
   uint32_t mesh;
   Vec3 a, b;
+  uint32_t v0 = 0, v1 = 0;  // the mesh vertices at a and b (vertex parameters take the gradient)
 };
 
 // Edges a sample may pick carry a weight proportional to their length, times this when a ray
@@ -55,6 +56,7 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
 
 struct ShadowBorderPoint {
   Vec3 e, toE;       // the edge point and e - l (directional sources: the unit travel direction d)
+  float t = 0.f;     // e = lerp(a, b, t)
   SurfaceHit hit;    // the shadow point y on its receiver
   float s = 0.f;     // |y - l| / |e - l| (directional: 1)
   float denom = 0.f; // nr . toE

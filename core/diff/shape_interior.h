@@ -108,7 +108,9 @@ class CameraHitShapeGradient {
   }
   // dLoss/dtheta_k = dp . p'_k + dn . ns'_k, with p'_k = d (ng . V_k) / (ng . d) and
   // ns'_k = (the normal turning with the mesh) + Jb (p'_k - V_k), Jb the shading normal's
-  // gradient along the surface. Both are linear in V_k(p): folded into one point gradient.
+  // gradient along the surface. Both are linear in V_k(p): folded into one point gradient. V_k is
+  // a rigid motion's velocity field or, for vertex parameters, b_i at the hit for vertex i (the
+  // triangle's points move linearly with its vertices), and the normal turns as the triangle does.
   void finish(const Scene& scene, const ParameterRegistry& params, PathGradient& grad) {
     if (!active_) return;
     active_ = false;
@@ -119,8 +121,7 @@ class CameraHitShapeGradient {
     const Vec3 m = surfaceNormalGradient(scene);
     // dp . p'_k + m . (p'_k - V_k) = (ng ((dp + m) . d) / (ng . d) - m) . V_k
     const Vec3 g = ng * (dot(dp_ + m, d_) / nd) - m;
-    params.addPointGradient(scene, hit_.mesh, hit_.p, g, grad);
-    params.addNormalGradient(scene, hit_.mesh, hit_.ns, dn_, grad);
+    params.addHitGradient(scene, hit_, g, dn_, grad);
   }
 
  private:

@@ -117,6 +117,14 @@ EdgeTopology EdgeTopology::build(const TriangleMesh& mesh, float weldTolerance) 
   return t;
 }
 
+void EdgeTopology::markEveryEdgeACrease() {
+  creases_ = 0;
+  for (MeshEdge& e : edges_) {
+    if (!e.boundary()) e.crease = true;
+    creases_ += e.crease;
+  }
+}
+
 bool EdgeTopology::silhouetteFrom(const MeshEdge& e, const TriangleMesh& mesh, const std::vector<Vec3>& faceNormals, Vec3 o) {
   return silhouetteTowards(e, faceNormals, o - mesh.positions[e.v0]);
 }

@@ -5,8 +5,8 @@
 // relative to the mesh's size are one vertex (±0.0 and rounding at seams included). Otherwise every
 // seam would look like a hole, and holes are always silhouettes.
 //
-// Topology is computed once per mesh; rigid motion keeps coincident vertices coincident, so it
-// stays valid while shape parameters move the mesh. Which edges are silhouettes depends on the
+// Topology is computed once per mesh; rigid motion keeps coincident vertices coincident, and vertex
+// parameters move welded copies together, so it stays valid while shape parameters move the mesh. Which edges are silhouettes depends on the
 // viewpoint and is evaluated per point (silhouetteFrom).
 #pragma once
 
@@ -33,6 +33,9 @@ class EdgeTopology {
   static EdgeTopology build(const TriangleMesh& mesh, float weldTolerance = 1e-5f);
 
   const std::vector<MeshEdge>& edges() const { return edges_; }
+  // For a mesh that deforms (vertex parameters): any two faces may turn apart, so every edge with
+  // two faces is a crease, whether or not its faces meet at an angle now.
+  void markEveryEdgeACrease();
   size_t boundaryEdges() const { return boundary_; }
   size_t creaseEdges() const { return creases_; }
   size_t nonManifoldEdges() const { return nonManifold_; }

@@ -346,4 +346,31 @@ TriangleMesh loadMesh(const std::filesystem::path& path, MemoryBudget* budget) {
 }
 
 
+void writePly(const std::filesystem::path& path, const TriangleMesh& mesh) {
+  const bool normals = mesh.normals.size() == mesh.positions.size() && !mesh.normals.empty();
+  std::string header = "ply\nformat binary_little_endian 1.0\ncomment written by invr\nelement vertex " + std::to_string(mesh.positions.size()) +
+                       "\nproperty float x\nproperty float y\nproperty float z\n";
+  if (normals) header += "property float nx\nproperty float ny\nproperty float nz\n";
+  header += "element face " + std::to_string(mesh.triangleCount()) + "\nproperty list uchar uint vertex_indices\nend_header\n";
+  std::string data;
+  data.reserve(mesh.positions.size() * (normals ? 24 : 12) + mesh.triangleCount() * 13);
+  auto put = [&](auto v) {
+    static_assert(std::endian::native == std::endian::little, "PLY writer assumes a little-endian host");
+    data.append(reinterpret_cast<const char*>(&v), sizeof v);
+  };
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    for (int c = 0; c < 3; ++c) put(mesh.positions[i][c]);
+    if (normals)
+      for (int c = 0; c < 3; ++c) put(mesh.normals[i][c]);
+  }
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    put(uint8_t(3));
+    for (int k = 0; k < 3; ++k) put(uint32_t(mesh.indices[3 * t + size_t(k)]));
+  }
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw InputError("cannot write '" + path.string() + "'");
+  out << header << data;
+  if (!out.flush()) throw InputError("cannot write '" + path.string() + "'");
+}
+
 }  // namespace invr

@@ -16,6 +16,10 @@ namespace invr {
 class MemoryBudget;
 TriangleMesh loadMesh(const std::filesystem::path& path, MemoryBudget* budget = nullptr);
 
+// Writes a binary little-endian PLY: vertex x y z (and nx ny nz when the mesh has normals), face
+// vertex_indices (uchar count, uint indices). Throws InputError when the file cannot be written.
+void writePly(const std::filesystem::path& path, const TriangleMesh& mesh);
+
 enum class MeshFormat { Obj, Ply };
 // The same from bytes in memory; `name` is what errors call the mesh.
 TriangleMesh parseMesh(const std::string& bytes, MeshFormat format, const std::string& name);

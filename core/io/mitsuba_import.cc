@@ -1118,8 +1118,33 @@ class Importer {
     std::string type = n.attribute("type").value();
     Props p = props(n);
     int depth = 0;
-    if (type == "path" || type == "prb" || type == "prb_basic") {
-      int md = intProp(p, "max_depth", type == "path" ? -1 : 6);
+    // The projective-sampling integrators of Mitsuba's shape optimisation: their own boundary
+    // sampling options have no counterpart (invr samples boundaries with its own terms).
+    const bool projective = type == "direct_projective" || type == "prb_projective";
+    if (projective) {
+      std::vector<std::string> ignored;
+      for (const char* name : {"sppc", "sppp", "sppi", "guiding", "guiding_proj", "guiding_rounds", "project_seed"})
+        if (p.named.count(name)) {
+          p.used.insert(name);
+          ignored.push_back(name);
+        }
+      if (!ignored.empty()) {
+        std::string list;
+        for (const auto& i : ignored) list += (list.empty() ? "" : ", ") + i;
+        warn(n, list + ": ignored (projective sampling options; invr samples visibility discontinuities with its own boundary terms, "
+                       "set in the job's optimization.boundary)");
+      }
+    }
+    if (type == "direct_projective") {
+      // Direct illumination with boundary terms; Mitsuba's base class still reads these two.
+      for (const char* name : {"max_depth", "rr_depth"})
+        if (p.named.count(name)) {
+          p.used.insert(name);
+          warn(p.named[name], std::string(name) + ": ignored (direct_projective renders direct illumination)");
+        }
+      depth = 1;
+    } else if (type == "path" || type == "prb" || type == "prb_basic" || type == "prb_projective") {
+      int md = intProp(p, "max_depth", type == "path" || type == "prb_projective" ? -1 : 6);
       if (md == 0 || md < -1) fail(p.named["max_depth"], "max_depth must be -1 (unlimited) or >= 2");
       if (md == 1) fail(p.named["max_depth"], "max_depth 1 shows only emitters seen directly; invr renders at least direct illumination (max_depth 2)");
       // Mitsuba counts the camera segment; invr counts the vertices after the camera.
@@ -1136,7 +1161,7 @@ class Importer {
       if (p.used.count("emitter_samples") || p.used.count("bsdf_samples"))
         warn(n, "emitter_samples / bsdf_samples: invr takes one light and one BSDF sample per vertex (the noise differs, not the image)");
     } else {
-      fail(n, "integrator type '" + type + "' is not supported (path, prb, direct)");
+      fail(n, "integrator type '" + type + "' is not supported (path, prb, prb_basic, prb_projective, direct, direct_projective)");
     }
     if (boolProp(p, "hide_emitters", false)) fail(p.named["hide_emitters"], "hide_emitters=true is not supported");
     out_.job.mutable_render()->set_max_depth(depth);

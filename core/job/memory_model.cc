@@ -18,9 +18,12 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   w.geometry = tris * (3 * 12 + 12 + 4 * 3) * 2.5;  // vertices, face normals, indices; BVH ~1.5x
   // Moving meshes keep their rest pose (vertices, normals) and a BVH of it, for tests in past
   // geometry (Scene::pose()).
-  double movingTris = 0;
-  for (uint32_t m : p.params.movingMeshes()) movingTris += double(s.meshes[m].triangleCount());
+  double movingTris = 0, deformedTris = 0;
+  for (uint32_t m : p.params.movingMeshes()) (p.params.deforms(m) ? deformedTris : movingTris) += double(s.meshes[m].triangleCount());
   w.geometry += movingTris * (3 * 12 + 4 * 3) * 2.5;
+  // Deformed meshes (vertex parameters) under ReSTIR keep, per geometry a kept reservoir was
+  // created in (last step's and this one's), their vertices, face normals and a BVH over them.
+  if (g.method == GradientMethod::Restir && !g.boundary.multiViewShortcut) w.geometry += 2 * deformedTris * (3 * 12 + 12) * 2.5;
   double texels = 0;
   for (const auto& sl : p.params.slots()) texels += sl.width ? double(sl.size) * 4 : 0;
   w.textures = texels * 3;

@@ -7,9 +7,16 @@ namespace invr {
 OptimizerKind optimizerKindFromName(const std::string& name) {
   if (name == "adam") return OptimizerKind::Adam;
   if (name == "sgd") return OptimizerKind::Sgd;
-  throw InputError("unknown optimizer '" + name + "' (use adam or sgd)");
+  if (name == "adam_uniform") return OptimizerKind::AdamUniform;
+  throw InputError("unknown optimizer '" + name + "' (use adam, adam_uniform or sgd)");
 }
 
-const char* optimizerKindName(OptimizerKind kind) { return kind == OptimizerKind::Adam ? "adam" : "sgd"; }
+const char* optimizerKindName(OptimizerKind kind) {
+  switch (kind) {
+    case OptimizerKind::Adam: return "adam";
+    case OptimizerKind::AdamUniform: return "adam_uniform";
+    default: return "sgd";
+  }
+}
 
 }  // namespace invr

@@ -7,7 +7,10 @@
 
 namespace invr {
 
-enum class OptimizerKind { Adam, Sgd };
+// AdamUniform: Adam with one second-moment scale per parameter, the largest over its values
+// (Nicolet et al. 2021; Mitsuba's Adam(uniform=True)): a vertex parameter then moves all its
+// vertices at one rate instead of normalising each vertex's step on its own.
+enum class OptimizerKind { Adam, Sgd, AdamUniform };
 OptimizerKind optimizerKindFromName(const std::string& name);  // throws InputError
 const char* optimizerKindName(OptimizerKind kind);
 

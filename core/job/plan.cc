@@ -98,11 +98,17 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
                     "and no spot cone is hard; contact curves and hard cone borders would not be sampled)");
     for (const std::string& u : unsampled)
       est.push_back("BIASED (boundary.allow_unsampled_discontinuities): " + u + "; no boundary term samples it");
+    bool deformed = false;
+    for (uint32_t m : p.params.movingMeshes()) deformed = deformed || p.params.deforms(m);
+    if (deformed)
+      est.push_back("vertex parameters: each vertex takes the interior term through the hit triangle's position and normal, and the boundary "
+                    "terms through the edge point's position along its edge; every edge of a deforming mesh is a crease candidate");
     if (g.method == GradientMethod::Restir)
       est.push_back(b.multiViewShortcut
                         ? "reused samples' support tested in the current geometry (multi-view shortcut, §3.2: biased while geometry moves)"
-                        : "reused samples' support tested in the geometry they were created in (§3.2: unbiased; the poses of the moving "
-                          "shapes are kept per step)");
+                        : std::string("reused samples' support tested in the geometry they were created in (§3.2: unbiased; the poses of the moving "
+                                      "shapes are kept per step") +
+                              (deformed ? ", and the vertices of deformed meshes with a BVH over them)" : ")"));
   } else {
     est.push_back("boundary (visibility) terms: none: only material and light parameters are optimised, so no visibility discontinuity moves with them");
   }

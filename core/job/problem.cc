@@ -75,6 +75,10 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     if (ps.has_learning_rate()) po.learningRate = finite("learning_rate", ps.learning_rate());
     if (ps.has_lower()) po.lower = finite("lower", ps.lower());
     if (ps.has_upper()) po.upper = finite("upper", ps.upper());
+    if (ps.has_large_steps_lambda()) {
+      po.largeStepsLambda = finite("large_steps_lambda", ps.large_steps_lambda());
+      if (*po.largeStepsLambda < 0.f) fail(field + ".large_steps_lambda", "must be >= 0 (got " + std::to_string(ps.large_steps_lambda()) + ")");
+    }
     if (ps.map_resolution_size() > 0) {
       if (ps.name().rfind("sampling/pixel_light_logits/", 0) != 0) fail(field + ".map_resolution", "only for sampling/pixel_light_logits/<view>");
       if (ps.map_resolution_size() != 2) fail(field + ".map_resolution", "needs [width, height]");
@@ -138,6 +142,11 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   } catch (const InputError& e) {
     fail("optimizer", e.what());
   }
+  if (p.optimizer == OptimizerKind::AdamUniform)
+    for (size_t i = 0; i < p.params.slots().size(); ++i)
+      if (p.params.slots()[i].size == 1)
+        fail("optimizer", "adam_uniform scales each parameter's steps by the largest second moment over its values; parameters[" + std::to_string(i) +
+                              "] ('" + p.params.slots()[i].name + "') has one value, where that is plain Adam: use adam");
   if (!(o.learning_rate_half_life() >= 0.0) || !std::isfinite(o.learning_rate_half_life()))
     fail("learning_rate_half_life", "must be a finite number of steps >= 0 (0: constant learning rates)");
   p.schedule.halfLifeSteps = o.learning_rate_half_life();

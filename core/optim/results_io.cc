@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/image/image.h"
+#include "core/io/mesh_io.h"
 #include "core/lights/light_selection.h"
 #include "core/scene/scene.h"
 
@@ -43,10 +44,18 @@ std::string oneLine(const Json& j) {
 }  // namespace
 
 std::vector<std::string> writeParameters(const std::filesystem::path& dir, const ParameterRegistry& params,
-                                         const std::vector<float>& theta) {
+                                         const std::vector<float>& theta, const Scene& scene) {
   std::vector<std::string> files{"parameters.json"};
   Json js = Json::object();
   for (const ParameterSlot& s : params.slots()) {
+    if (s.kind == ParamKind::ShapeVertices) {
+      const std::string file = "mesh_" + scene.meshNames[size_t(s.shape)] + ".ply";
+      const TriangleMesh mesh = params.vertexMesh(scene, s, theta.data() + s.offset);
+      writePly(dir / file, mesh);
+      files.push_back(file);
+      js[s.name] = {{"mesh", file}, {"vertices", mesh.positions.size()}, {"triangles", mesh.triangleCount()}};
+      continue;
+    }
     if (s.width > 0) {
       std::string file = s.name;
       std::replace(file.begin(), file.end(), '/', '_');

@@ -14,15 +14,18 @@
 
 namespace invr {
 
-// Writes dir/parameters.json and dir/<name>.exr per texture parameter; returns the files written.
+// Writes dir/parameters.json, dir/<name>.exr per texture parameter and dir/mesh_<shape>.ply per
+// vertex parameter (parameters.json then names the file instead of listing the numbers); returns
+// the files written.
 std::vector<std::string> writeParameters(const std::filesystem::path& dir, const ParameterRegistry& params,
-                                         const std::vector<float>& theta);
+                                         const std::vector<float>& theta, const Scene& scene);
+
+class Scene;
 
 // Jobs with sampling parameters (docs/variance.md): the light-selection probabilities they reached.
 // dir/light_selection.csv (light,probability) holds the global rule; each view with per-pixel logits
 // gets dir/selection_view<v>.exr, one channel per light (named after it) per cell of its map.
 // Writes theta into `scene`; returns the files written (none without sampling parameters).
-class Scene;
 std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir, const ParameterRegistry& params, Scene& scene,
                                                const std::vector<float>& theta);
 

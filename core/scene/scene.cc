@@ -131,6 +131,26 @@ void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
   if (moved) ++geometryVersion_;
 }
 
+void Scene::deformMesh(uint32_t m, const std::vector<Vec3>& positions) {
+  TriangleMesh& mesh = meshes.at(m);
+  if (positions.size() != mesh.positions.size())
+    throw std::invalid_argument("deformMesh: " + std::to_string(positions.size()) + " positions for a mesh of " +
+                                std::to_string(mesh.positions.size()) + " vertices");
+  if (!motion.deforming_[m]) {
+    if (motion.moving_[m]) throw std::logic_error("deformMesh: mesh " + meshNames[m] + " already moves rigidly");
+    motion.moving_[m] = motion.deforming_[m] = 1;
+    motion.movingList_.insert(std::lower_bound(motion.movingList_.begin(), motion.movingList_.end(), m), m);
+    dynamicMeshes_[m] = true;
+    if (accelerated_) accel.build(meshes, dynamicMeshes_);  // refit-friendly from now on
+  } else if (positions == mesh.positions) {
+    return;
+  }
+  mesh.positions = positions;
+  computeFaceNormals(m);
+  if (accelerated_) accel.updatePositions(m, mesh.positions);
+  ++geometryVersion_;
+}
+
 bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   RayHit rh;
   if (!accel.intersect(o, d, 0.f, tmax, rh)) return false;
@@ -142,7 +162,27 @@ bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
 PoseSnapshot Scene::pose() const {
   PoseSnapshot s;
   s.version = geometryVersion_;
-  for (uint32_t m : motion.movingList_) s.meshes.push_back({m, motion.appliedMap_[m], motion.appliedMap_[m].inverse()});
+  for (uint32_t m : motion.movingList_) {
+    if (!motion.deforming_[m]) {
+      s.meshes.push_back({m, motion.appliedMap_[m], motion.appliedMap_[m].inverse(), nullptr});
+      continue;
+    }
+    // Deformed meshes: their vertices now, and a BVH over them, once per geometry version.
+    std::lock_guard<std::mutex> lock(deformedMutex_);
+    if (deformedCache_.size() != meshes.size()) deformedCache_.resize(meshes.size());
+    auto& cached = deformedCache_[m];
+    if (!cached || cached->positions != meshes[m].positions) {
+      auto g = std::make_shared<DeformedGeometry>();
+      g->positions = meshes[m].positions;
+      g->faceNormals = meshes[m].faceNormals;
+      if (accelerated_) {
+        TriangleMesh copy = meshes[m];
+        g->bvh.build({copy}, {true});  // robust traversal, as for the moving copy
+      }
+      cached = std::move(g);
+    }
+    s.meshes.push_back({m, {}, {}, cached});
+  }
   return s;
 }
 
@@ -152,9 +192,16 @@ SurfaceHit Scene::surfaceAt(const PoseSnapshot& pose, uint32_t mesh, uint32_t tr
   // The vertices as applyShapeMotion placed them in that pose (the same float operations), then
   // the surface point as surfaceAt computes it.
   const TriangleMesh& m = meshes[mesh];
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  if (e->deformed) {  // flat-shaded (interpolated normals on deformed meshes are refused)
+    const DeformedGeometry& g = *e->deformed;
+    SurfaceHit hit = surfaceAt(mesh, tri, b1, b2);
+    hit.p = g.positions[i0] * (1.f - b1 - b2) + g.positions[i1] * b1 + g.positions[i2] * b2;
+    hit.ng = hit.ns = g.faceNormals[tri];
+    return hit;
+  }
   const auto& rest = motion.restPositions_[mesh];
   const auto& restN = motion.restNormals_[mesh];
-  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
   const Vec3 a = e->toPose.point(rest[i0]), b = e->toPose.point(rest[i1]), c = e->toPose.point(rest[i2]);
   SurfaceHit hit = surfaceAt(mesh, tri, b1, b2);  // uv and indices; positions and normals below
   const float b0 = 1.f - b1 - b2;
@@ -198,8 +245,10 @@ bool Scene::occludedSegment(const PoseSnapshot& pose, Vec3 o, Vec3 target) const
   if (!(len > 0.f)) return false;
   if (occludedByStatic(o, d / len, len)) return true;
   // In each moving mesh's rest frame the segment is still o + t d, t in [0, 1] (maps are affine).
-  for (const PoseSnapshot::Entry& e : pose.meshes)
-    if (restAccel_[e.mesh]->occluded(e.fromPose.point(o), e.fromPose.vector(d), 0.f, 1.f)) return true;
+  for (const PoseSnapshot::Entry& e : pose.meshes) {
+    if (e.deformed ? e.deformed->bvh.occluded(o, d, 0.f, 1.f) : restAccel_[e.mesh]->occluded(e.fromPose.point(o), e.fromPose.vector(d), 0.f, 1.f))
+      return true;
+  }
   return false;
 }
 
@@ -207,8 +256,10 @@ bool Scene::occludedDirection(const PoseSnapshot& pose, Vec3 o, Vec3 d) const {
   if (pose.version == geometryVersion_) return occludedDirection(o, d);
   const float inf = std::numeric_limits<float>::infinity();
   if (occludedByStatic(o, d, inf)) return true;
-  for (const PoseSnapshot::Entry& e : pose.meshes)
-    if (restAccel_[e.mesh]->occluded(e.fromPose.point(o), e.fromPose.vector(d), 0.f, inf)) return true;
+  for (const PoseSnapshot::Entry& e : pose.meshes) {
+    if (e.deformed ? e.deformed->bvh.occluded(o, d, 0.f, inf) : restAccel_[e.mesh]->occluded(e.fromPose.point(o), e.fromPose.vector(d), 0.f, inf))
+      return true;
+  }
   return false;
 }
 

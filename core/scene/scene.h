@@ -4,6 +4,7 @@
 
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -51,6 +52,13 @@ struct SamplingState {
 };
 
 class Scene;
+
+// A deformed mesh as one geometry version left it (shape_motion.h's PoseSnapshot): reused ReSTIR
+// samples test their support against these vertices, through their own BVH.
+struct DeformedGeometry {
+  std::vector<Vec3> positions, faceNormals;
+  EmbreeScene bvh;
+};
 // Light sampling with the scene's emitter meshes (core/lights/light.h holds the per-light forms).
 LightSample sampleLight(const Light& light, const Scene& scene, Vec3 p, Vec2 u2, uint32_t lightIndex = 0);
 LightSample evalLightSample(const Scene& scene, const LightSampleRef& ref, Vec3 p);
@@ -99,6 +107,10 @@ class Scene {
   // refit-friendly flags), geometry version; and recomputes their velocity fields. Meshes whose
   // motion did not change since the last call keep their vertices.
   void applyShapeMotion(const std::vector<uint32_t>& optimisedMeshes);
+  // Moves a mesh vertex by vertex (vertex parameters): positions, face normals, BVH refit (the
+  // first call rebuilds it with refit-friendly flags and marks the mesh moving and deforming),
+  // geometry version. A call that changes no position changes nothing.
+  void deformMesh(uint32_t mesh, const std::vector<Vec3>& positions);
 
   // Incremented whenever vertices move, so caches of surface positions know to re-place.
   uint64_t geometryVersion() const { return geometryVersion_; }
@@ -156,6 +168,9 @@ class Scene {
   std::vector<uint32_t> infiniteLights_;
   std::vector<bool> dynamicMeshes_;
   std::vector<std::unique_ptr<EmbreeScene>> restAccel_;  // per moving mesh: its rest pose
+  // Per deformed mesh: its geometry at the version pose() last recorded (shared by snapshots).
+  mutable std::vector<std::shared_ptr<const DeformedGeometry>> deformedCache_;
+  mutable std::mutex deformedMutex_;
   bool occludedByStatic(Vec3 o, Vec3 d, float tmax) const;
   uint64_t geometryVersion_ = 0;
   bool accelerated_ = false;

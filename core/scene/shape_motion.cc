@@ -85,6 +85,7 @@ void ShapeMotion::resize(size_t meshes, size_t groups) {
   restPositions_.assign(meshes, {});
   restNormals_.assign(meshes, {});
   moving_.assign(meshes, 0);
+  deforming_.assign(meshes, 0);
   movingList_.clear();
   appliedMap_.assign(meshes, {});
 }

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "core/math/affine.h"
@@ -31,14 +32,21 @@ struct RigidMotion {
   bool operator!=(const RigidMotion& o) const { return !(*this == o); }
 };
 
+// A deformed mesh (vertex parameters) as it was at one geometry version: its vertices and a BVH
+// over them (defined in scene.h).
+struct DeformedGeometry;
+
 // The poses of the moving meshes at one geometry version: per moving mesh, the map from its rest
 // pose to that pose and back. Reused ReSTIR samples test their support in the geometry they were
 // created in (Wang et al. 2023, §3.2); motions are affine, so a few maps recall a whole geometry.
+// A deformed mesh has no such map: its entry holds that version's vertices and their BVH, shared
+// by every snapshot of the same version.
 struct PoseSnapshot {
   uint64_t version = 0;  // Scene::geometryVersion() when taken
   struct Entry {
     uint32_t mesh;
-    Affine3d toPose, fromPose;
+    Affine3d toPose, fromPose;                         // rigid motion
+    std::shared_ptr<const DeformedGeometry> deformed;  // vertex parameters (maps unused)
   };
   std::vector<Entry> meshes;  // sorted by mesh
   const Entry* find(uint32_t mesh) const {
@@ -75,6 +83,8 @@ class ShapeMotion {
     return -(g - n * dot(n, g));
   }
   bool moving(uint32_t m) const { return m < moving_.size() && moving_[m]; }
+  // Moved vertex by vertex (vertex parameters, Scene::deformMesh) rather than rigidly.
+  bool deforming(uint32_t m) const { return m < deforming_.size() && deforming_[m]; }
   bool anyMoving() const { return !movingList_.empty(); }
 
  private:
@@ -83,8 +93,8 @@ class ShapeMotion {
   std::vector<RigidMotion> appliedMesh_, appliedGroup_;  // what the vertices reflect
   std::vector<std::array<Affine3d, kFields>> velocity_;
   std::vector<std::vector<Vec3>> restPositions_, restNormals_;  // captured when a mesh first moves
-  std::vector<uint8_t> moving_;
-  std::vector<uint32_t> movingList_;  // the moving meshes, ascending
+  std::vector<uint8_t> moving_, deforming_;
+  std::vector<uint32_t> movingList_;  // the moving meshes (rigid and deformed), ascending
   std::vector<Affine3d> appliedMap_;  // per mesh: rest pose -> the pose its vertices hold
 };
 

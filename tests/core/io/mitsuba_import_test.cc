@@ -370,6 +370,32 @@ TEST(MitsubaImport, IgnoredHarmlessPropertiesAreWarnedAbout) {
   EXPECT_MENTIONS(all, "box filter");
 }
 
+// The projective integrators Mitsuba's shape scenes name: direct_projective is direct
+// illumination, prb_projective a path tracer; their boundary sampling options are warned about and
+// ignored (invr's boundary terms do that work). Several sensors become several views.
+TEST(MitsubaImport, ProjectiveIntegratorsImportWithTheirSamplingOptionsIgnored) {
+  const std::string sensor = R"(<sensor type="perspective"><float name="fov" value="45"/>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film></sensor>)";
+  auto warnings = [](const MitsubaImport& imp) {
+    std::string all;
+    for (const auto& w : imp.warnings) all += w + "\n";
+    return all;
+  };
+  MitsubaImport direct = importText(R"(<scene version="3.0.0"><emitter type="constant"/>
+    <integrator type="direct_projective"><integer name="sppc" value="32"/><integer name="sppp" value="32"/><integer name="sppi" value="0"/>
+    <string name="guiding" value="none"/></integrator>)" + sensor + sensor + "</scene>");
+  EXPECT_EQ(direct.job.render().max_depth(), 1);
+  EXPECT_EQ(direct.job.scene().views_size(), 2);
+  EXPECT_MENTIONS(warnings(direct), "sppc, sppp, sppi, guiding: ignored");
+  MitsubaImport prb = importText(R"(<scene version="3.0.0"><emitter type="constant"/>
+    <integrator type="prb_projective"><integer name="max_depth" value="4"/><integer name="sppi" value="64"/>
+    <boolean name="guiding_proj" value="false"/></integrator>)" + sensor + "</scene>");
+  EXPECT_EQ(prb.job.render().max_depth(), 3);
+  EXPECT_MENTIONS(warnings(prb), "sppi, guiding_proj: ignored");
+  EXPECT_MENTIONS(errorOf(R"(<scene version="3.0.0"><emitter type="constant"/><integrator type="volpath"/>)" + sensor + "</scene>"),
+                  "direct_projective");
+}
+
 TEST(MitsubaImport, LookatWithoutUpTakesMitsubasFrame) {
   // Looking down -z, Mitsuba's orthonormal frame (Duff et al.) puts up along +x.
   v1::Camera c = cameraOf(R"(<float name="fov" value="45"/><transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0"/></transform>)", 8, 8);

@@ -73,6 +73,23 @@ TEST(Problem, ShapeJobsSayWhatTheyCannotDo) {
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/nope/translation"}]})"), "no shape named 'nope'");
 }
 
+// Vertex parameters and Large Steps: each mistake names its field.
+TEST(Problem, VertexParameterMistakesNameTheField) {
+  const std::string allow = R"(, "boundary": {"allow_unsampled_discontinuities": true})";
+  EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/vertices", "large_steps_lambda": 10}], "optimizer": "adam_uniform")" + allow + "}"), "");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/vertices", "large_steps_lambda": -1}])" + allow + "}"),
+                  "optimization.parameters[0].large_steps_lambda: must be >= 0");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/vertices", "large_steps_lambda": "NaN"}])" + allow + "}"),
+                  "optimization.parameters[0].large_steps_lambda: must be a finite number");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "materials/red/albedo", "large_steps_lambda": 5}]})"),
+                  "large_steps_lambda applies to vertex parameters");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/vertices"}, {"name": "shapes/short_box/scale"}], "optimizer": "adam_uniform")" +
+                          allow + "}"),
+                  "optimization.optimizer: adam_uniform scales each parameter's steps by the largest second moment over its values; parameters[1]");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/vertices"}, {"name": "shapes/tall_box/translation"}])" + allow + "}"),
+                  "optimization.parameters[1].name: parameter 'shapes/tall_box/translation': shape 'tall_box' has its vertices as a parameter");
+}
+
 // Moving discontinuities that are not mesh edges (issue 39): a shape resting on another surface
 // cuts it along a contact curve at every tilt, and a hard spot cone's border slides over the
 // moving surfaces it lights; no boundary term samples either. Such jobs are refused, naming the

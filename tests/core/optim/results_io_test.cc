@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/io/mesh_io.h"
 #include "test_util.h"
 
 namespace invr {
@@ -61,7 +62,7 @@ TEST(ResultsIo, ParameterNamesWithQuotesBackslashesAndNewlinesRoundTrip) {
   theta = {0.1f, 0.123456789f, 0.75f, 2.5f, 1e-7f, 12345.6f};
 
   TempDir dir;
-  auto files = writeParameters(dir.path, reg, theta);
+  auto files = writeParameters(dir.path, reg, theta, *scene);
   ASSERT_EQ(files, std::vector<std::string>{"parameters.json"});
   nlohmann::json js;
   ASSERT_NO_THROW(js = readJson(dir.path / "parameters.json"));
@@ -93,11 +94,33 @@ TEST(ResultsIo, TexturesAreNamedByTheirImageFile) {
   reg.add(*scene, "materials/t/albedo");
   std::vector<float> theta = reg.read(*scene);
   TempDir dir;
-  auto files = writeParameters(dir.path, reg, theta);
+  auto files = writeParameters(dir.path, reg, theta, *scene);
   ASSERT_EQ(files, (std::vector<std::string>{"parameters.json", "materials_t_albedo.exr"}));
   EXPECT_GT(fs::file_size(dir.path / "materials_t_albedo.exr"), 0u);
   nlohmann::json js = readJson(dir.path / "parameters.json");
   EXPECT_EQ(js, nlohmann::json::parse(R"({"materials/t/albedo": {"texture": "materials_t_albedo.exr", "width": 4, "height": 4}})"));
+}
+
+// A vertex parameter's mesh is written as mesh_<shape>.ply (binary), which parameters.json names;
+// it reads back (through the mesh loader users' meshes go through) with the values written.
+TEST(ResultsIo, VertexParametersAreWrittenAsPlyMeshes) {
+  auto scene = test::sceneFromJson(kScene);
+  ParameterRegistry reg;
+  reg.add(*scene, "shapes/q/vertices");
+  std::vector<float> theta = reg.read(*scene);
+  ASSERT_EQ(theta.size(), 12u);
+  for (size_t i = 0; i < theta.size(); ++i) theta[i] += 0.01f * float(i);
+  TempDir dir;
+  auto files = writeParameters(dir.path, reg, theta, *scene);
+  ASSERT_EQ(files, (std::vector<std::string>{"parameters.json", "mesh_q.ply"}));
+  EXPECT_EQ(readJson(dir.path / "parameters.json"),
+            nlohmann::json::parse(R"({"shapes/q/vertices": {"mesh": "mesh_q.ply", "vertices": 4, "triangles": 2}})"));
+  const TriangleMesh back = loadMesh(dir.path / "mesh_q.ply");
+  ASSERT_EQ(back.positions.size(), 4u);
+  ASSERT_EQ(back.triangleCount(), 2u);
+  for (size_t v = 0; v < 4; ++v)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(back.positions[v][c], theta[3 * v + size_t(c)]) << v << " " << c;
+  EXPECT_EQ(back.indices, scene->meshes[0].indices);
 }
 
 TEST(ResultsIo, NonFiniteValuesStayValidJson) {
@@ -106,7 +129,7 @@ TEST(ResultsIo, NonFiniteValuesStayValidJson) {
   reg.add(*scene, "lights/l/intensity");
   std::vector<float> theta = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), 1.f};
   TempDir dir;
-  writeParameters(dir.path, reg, theta);
+  writeParameters(dir.path, reg, theta, *scene);
   nlohmann::json js;
   ASSERT_NO_THROW(js = readJson(dir.path / "parameters.json"));
   EXPECT_EQ(js.at("lights/l/intensity"), nlohmann::json::parse("[null, null, 1.0]"));
