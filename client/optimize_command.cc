@@ -56,12 +56,13 @@ void runOptimize(const OptimizeArgs& a) {
   LocalRunResult result;
   try {
     result = runLocally(problem, [&](const StepReport& r) {
-      csv.add({method, r.step, r.seconds, r.loss, r.parameterError, std::numeric_limits<double>::quiet_NaN(), r.stats});
+      csv.add({method, r.step, r.seconds, r.loss, r.parameterError, std::numeric_limits<double>::quiet_NaN(), r.stats, r.shapeError});
       if (csv.rows() % 100 == 0) csv.write();  // a long run's CSV stays current
       bar.update(double(r.step) / problem.steps);
       if (!tty && (r.step % 10 == 0 || int(r.step) == problem.steps))
         std::cout << "step " << r.step << "/" << problem.steps << "  loss " << r.loss << "  param_error " << r.parameterError
-                  << "  " << r.seconds << " s\n" << std::flush;
+                  << (r.shapeError >= 0 ? "  shape_error " + std::to_string(r.shapeError) : std::string()) << "  " << r.seconds << " s\n"
+                  << std::flush;
     });
   } catch (const std::exception&) {
     csv.write();  // the steps that were done (a diverging run's among them)
@@ -73,7 +74,8 @@ void runOptimize(const OptimizeArgs& a) {
   try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
     // Sampling parameters have no ground truth: chart the loss instead.
     const bool truth = parameterError(problem, problem.initial) >= 0;
-    drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png", "seconds", truth ? "param_error" : "loss");
+    drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png", "seconds",
+                         truth ? "param_error" : !problem.truthMeshes.empty() ? "shape_error" : "loss");
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
   }
@@ -93,7 +95,10 @@ void runOptimize(const OptimizeArgs& a) {
   std::cout << "done: "
             << (last.parameterError >= 0 ? "parameter error " + BenchReport::fmt(parameterError(problem, problem.initial)) + " -> " +
                                                BenchReport::fmt(last.parameterError)
+                : last.shapeError >= 0   ? std::string("no parameter error (started from another mesh)")
                                          : std::string("no parameter error (sampling parameters have no ground truth)"))
+            << (last.shapeError >= 0 ? ", shape error " + BenchReport::fmt(shapeError(problem, problem.initial)) + " -> " + BenchReport::fmt(last.shapeError)
+                                     : std::string())
             << ", loss "
             << result.history.front().loss << " -> " << last.loss << " in " << last.seconds << " s\n"
             << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, final/target renders)\n";

@@ -46,15 +46,33 @@ int fetchResults(ServiceClient& c, const std::string& job, const std::filesystem
   int n = c.fetchAll(job, dir);
   const std::filesystem::path csv = dir / "convergence.csv";
   if (!std::filesystem::exists(csv)) return n;
-  bool paramError = false;  // -1 when the job has no ground truth: chart the loss instead
+  // Chart the parameter error; -1 when the job has none (no ground truth, or a start mesh): then
+  // the shape error if the job has one, else the loss.
+  std::string y = "loss";
   {
     std::ifstream in(csv);
-    std::string line;
-    std::getline(in, line);
-    if (std::getline(in, line)) paramError = line.substr(line.rfind(',') + 1).rfind('-', 0) != 0;
+    std::string header, row;
+    std::getline(in, header);
+    if (std::getline(in, row)) {
+      auto cells = [](const std::string& line) {
+        std::vector<std::string> out;
+        std::stringstream ss(line);
+        for (std::string c; std::getline(ss, c, ',');) out.push_back(c);
+        return out;
+      };
+      const auto names = cells(header), values = cells(row);
+      auto value = [&](const std::string& name) -> std::string {
+        for (size_t i = 0; i < names.size() && i < values.size(); ++i)
+          if (names[i] == name) return values[i];
+        return "";
+      };
+      const std::string pe = value("param_error"), se = value("shape_error");
+      if (!pe.empty() && pe[0] != '-') y = "param_error";
+      else if (!se.empty() && se[0] != '-') y = "shape_error";
+    }
   }
   try {
-    drawConvergenceChart({csv}, dir / "convergence.png", "seconds", paramError ? "param_error" : "loss");
+    drawConvergenceChart({csv}, dir / "convergence.png", "seconds", y);
     ++n;
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
@@ -461,7 +479,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   chc->add_option("-o,--out", ch->out, "chart file (.png or .svg)")->capture_default_str();
   chc->add_option("--x", ch->x, "x axis")->check(CLI::IsMember({"seconds", "step", "steps"}))->capture_default_str();
   chc->add_option("--y", ch->y, "y axis (image_error: CSVs from invr eval and bench reconstruct)")
-      ->check(CLI::IsMember({"param_error", "loss", "image_error"}))
+      ->check(CLI::IsMember({"param_error", "loss", "image_error", "shape_error"}))
       ->capture_default_str();
   chc->add_option("--title", ch->title, "chart title");
   serverOpt(chc, ch->server);

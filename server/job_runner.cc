@@ -249,6 +249,7 @@ void JobRunner::runSteps(Context& c) {
     sp.set_steps(uint64_t(p.steps));
     sp.set_loss(g->stats.loss());
     sp.set_param_error(p.groundTruthKnown() ? parameterError(p, ls.theta) : -1.0);
+    sp.set_shape_error(shapeError(p, ls.theta));
     sp.set_seconds(seconds);
     sp.set_steps_per_second(1.0 / perStep);
     sp.set_eta_seconds(perStep * double(uint64_t(p.steps) - ls.step));
@@ -300,6 +301,7 @@ void JobRunner::writeResults(Context& c) {
       row.seconds = sp.seconds();
       row.loss = sp.loss();
       row.paramError = sp.param_error();
+      if (!p.truthMeshes.empty()) row.shapeError = sp.shape_error();
       row.stats = sp.stats();
       csv.add(std::move(row));
     }

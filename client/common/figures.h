@@ -10,7 +10,7 @@
 
 namespace invr {
 
-// x: "seconds" or "step"; y: "loss", "param_error" or "image_error". A CSV may hold several
+// x: "seconds" or "step"; y: "loss", "param_error", "image_error" or "shape_error". A CSV may hold several
 // methods (one line each). Throws InputError with python's message when a CSV is unusable;
 // std::runtime_error when python3 or matplotlib is missing.
 void drawConvergenceChart(const std::vector<std::filesystem::path>& csvs, const std::filesystem::path& out,

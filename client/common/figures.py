@@ -1,5 +1,5 @@
 # Figures drawn with Debian's /usr/bin/python3 and matplotlib; compiled into invr and the server.
-#   chart OUT X Y TITLE CSV...   convergence CSVs (method,step,seconds,loss,param_error[,image_error]):
+#   chart OUT X Y TITLE CSV...   convergence CSVs (method,step,seconds,loss,param_error,image_error[,shape_error],...):
 #                                one line per method and file, log-scale error axis, legend from
 #                                the method names; empty cells (unmeasured points) are skipped.
 #   grid OUT SPEC.json           images side by side: {"title", "columns": [...], "rows":
@@ -21,6 +21,7 @@ LABELS = {
     "param_error": "parameter RMSE",
     "loss": "loss",
     "image_error": "image error (relative RMSE)",
+    "shape_error": "shape error (chamfer / bounding-box diagonal)",
 }
 
 

@@ -225,6 +225,7 @@ std::string describeEvent(const v1::ProgressEvent& e) {
   if (e.has_step()) {
     const auto& s = e.step();
     std::string err = s.param_error() >= 0 ? ("  param_error " + std::to_string(s.param_error())) : "";
+    if (s.shape_error() > 0) err += "  shape_error " + std::to_string(s.shape_error());
     std::snprintf(buf, sizeof buf, "step %llu/%llu  loss %.6g%s  %.1f s  %.2f steps/s  eta %.0f s", (unsigned long long)s.step(),
                   (unsigned long long)s.steps(), s.loss(), err.c_str(), s.seconds(), s.steps_per_second(), s.eta_seconds());
     std::string out = buf;

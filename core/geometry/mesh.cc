@@ -68,6 +68,47 @@ TriangleMesh makeDisk(int segments) {
   return m;
 }
 
+TriangleMesh makeIcosphere(int subdivisions) {
+  TriangleMesh m;
+  const float t = (1.f + std::sqrt(5.f)) / 2.f;
+  m.positions = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t}, {0, -1, -t}, {0, 1, -t},
+                 {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  for (Vec3& p : m.positions) p = normalize(p);
+  m.indices = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4, 11, 10, 2, 10, 7, 6, 7, 1, 8,
+               3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7, 9, 8, 1};
+  for (int s = 0; s < subdivisions; ++s) {
+    std::map<std::pair<uint32_t, uint32_t>, uint32_t> midpoint;
+    auto mid = [&](uint32_t a, uint32_t b) {
+      auto key = std::minmax(a, b);
+      auto [it, fresh] = midpoint.try_emplace({key.first, key.second}, uint32_t(m.positions.size()));
+      if (fresh) m.positions.push_back(normalize(m.positions[a] + m.positions[b]));
+      return it->second;
+    };
+    std::vector<uint32_t> next;
+    next.reserve(m.indices.size() * 4);
+    for (size_t f = 0; f < m.indices.size(); f += 3) {
+      const uint32_t a = m.indices[f], b = m.indices[f + 1], c = m.indices[f + 2];
+      const uint32_t ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+      next.insert(next.end(), {a, ab, ca, b, bc, ab, c, ca, bc, ab, bc, ca});
+    }
+    m.indices = std::move(next);
+  }
+  return m;
+}
+
+TriangleMesh makeGrid(int cells) {
+  TriangleMesh m;
+  const uint32_t n = uint32_t(cells);
+  for (uint32_t y = 0; y <= n; ++y)
+    for (uint32_t x = 0; x <= n; ++x) m.positions.push_back({-1.f + 2.f * float(x) / float(n), -1.f + 2.f * float(y) / float(n), 0.f});
+  for (uint32_t y = 0; y < n; ++y)
+    for (uint32_t x = 0; x < n; ++x) {
+      const uint32_t v = y * (n + 1) + x;
+      m.indices.insert(m.indices.end(), {v, v + 1, v + n + 2, v, v + n + 2, v + n + 1});
+    }
+  return m;
+}
+
 TriangleMesh makeQuad() {
   TriangleMesh m;
   m.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};

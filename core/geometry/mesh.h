@@ -32,6 +32,11 @@ TriangleMesh makeSphere(int rings);
 TriangleMesh makeDisk(int segments);  // radius 1 in the xy plane, normal +z
 TriangleMesh makeCylinder(int segments, bool capped);
 TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments);
+// Start meshes of vertex parameters (no seams, no normals, no uvs): an icosahedron subdivided
+// `subdivisions` times onto the unit sphere (10 * 4^s + 2 vertices), and a grid of n x n cells
+// over [-1, 1]^2 in the xy plane, normal +z.
+TriangleMesh makeIcosphere(int subdivisions);
+TriangleMesh makeGrid(int cells);
 
 // Throws InputError("<what>: ...") if the mesh is empty, has out-of-range indices, non-finite
 // positions, normals or uvs, attribute arrays whose size differs from the positions, an edge

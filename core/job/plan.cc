@@ -124,8 +124,13 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
                                        : std::string(" (constant learning rates)"))
       << ", " << p.steps << " steps, " << p.viewsPerStep << " view(s) per step\n";
   out << "targets: "
-      << (p.groundTruthKnown() ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp)" + (parameterError(p, p.initial) >= 0 ? "; parameter error reported" : "; sampling parameters only: no parameter error")
-                               : std::string("uploaded images; no ground truth"))
+      << (p.groundTruthKnown()
+              ? "rendered from the scene (" + std::to_string(p.targetSpp) + " spp)" +
+                    (parameterError(p, p.initial) >= 0 ? "; parameter error reported"
+                     : p.truthMeshes.empty()           ? "; sampling parameters only: no parameter error"
+                                                       : "; no parameter error (started from another mesh)") +
+                    (p.truthMeshes.empty() ? "" : "; shape error reported (chamfer distance to the scene's own mesh over its bounding-box diagonal)")
+              : std::string("uploaded images; no ground truth"))
       << "\n";
   size_t maxShard = 0;
   for (const auto& sh : p.shards) maxShard = std::max(maxShard, sh.size());

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 
 #include "core/diff/gradient_engine.h"
 #include "core/diff/gradient_job_check.h"
 #include "core/error.h"
+#include "core/geometry/mesh_distance.h"
 #include "core/image/image.h"
 #include "core/render/renderer.h"
 
@@ -86,10 +88,44 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       po.mapHeight = ps.map_resolution(1);
       if (po.mapWidth <= 0 || po.mapHeight <= 0) fail(field + ".map_resolution", "must be positive");
     }
+    // A start mesh replaces the shape's geometry before its vertices are registered (the
+    // parameter has the start mesh's vertices); the shape's own mesh stays the truth.
+    std::optional<Problem::TruthMesh> replaced;
+    if (ps.has_initial_mesh()) {
+      std::string invrName;
+      try {
+        invrName = invrParameterName(*p.scene, ps.name());
+      } catch (const InputError& e) {
+        fail(field + ".name", e.what());
+      }
+      const std::string prefix = "shapes/", suffix = "/vertices";
+      if (invrName.rfind(prefix, 0) != 0 || invrName.size() <= prefix.size() + suffix.size() ||
+          invrName.compare(invrName.size() - suffix.size(), suffix.size(), suffix) != 0)
+        fail(field + ".initial_mesh", "a start mesh is for vertex parameters (shapes/<name>/vertices), not '" + ps.name() + "'");
+      const std::string shape = invrName.substr(prefix.size(), invrName.size() - prefix.size() - suffix.size());
+      const v1::Scene spec = jobSceneSpec(job);
+      const v1::Shape* shapeSpec = nullptr;
+      for (const auto& s : spec.shapes())
+        if (s.name() == shape) shapeSpec = &s;
+      uint32_t mesh = 0;
+      while (mesh < p.scene->meshNames.size() && p.scene->meshNames[mesh] != shape) ++mesh;
+      if (!shapeSpec || mesh >= p.scene->meshNames.size()) fail(field + ".name", "parameter '" + ps.name() + "': no shape named '" + shape + "'");
+      if (p.scene->meshLight[mesh] >= 0) fail(field + ".name", "parameter '" + ps.name() + "': shape '" + shape + "' emits light");
+      if (p.params.moves(mesh)) fail(field + ".initial_mesh", "shape '" + shape + "' is already moved by another parameter");
+      replaced = Problem::TruthMesh{0, mesh, p.scene->meshes[mesh], 0.0, true};
+      p.scene->replaceMesh(mesh, startMesh(ps.initial_mesh(), *shapeSpec, p.scene->meshes[mesh], assets, "optimization." + field + ".initial_mesh"));
+    }
     try {
       p.params.add(*p.scene, ps.name(), po);
     } catch (const InputError& e) {
       fail(field + ".name", e.what());
+    }
+    const ParameterSlot& added = p.params.slots().back();
+    if (added.kind == ParamKind::ShapeVertices) {
+      Problem::TruthMesh t = replaced ? *replaced : Problem::TruthMesh{0, uint32_t(added.shape), p.scene->meshes[size_t(added.shape)], 0.0, false};
+      t.slot = p.params.slots().size() - 1;
+      t.diagonal = boundingBoxDiagonal(t.geometry);
+      p.truthMeshes.push_back(std::move(t));
     }
   }
   p.truth = p.params.read(*p.scene);
@@ -245,9 +281,35 @@ RenderOptions targetRenderOptions(const Problem& p) { return transportRenderOpti
 Image renderTarget(Problem& p, int view, const std::atomic<bool>* cancel) {
   if (!p.givenTargets.empty()) return p.givenTargets.at(size_t(view));
   p.params.write(p.truth, *p.scene);
+  // Shapes started from another mesh: the truth's own geometry for the render, then back.
+  struct TruthGeometry {
+    Problem& p;
+    std::vector<std::pair<uint32_t, TriangleMesh>> held;
+    explicit TruthGeometry(Problem& problem) : p(problem) {
+      for (const auto& t : p.truthMeshes)
+        if (t.replaced) {
+          held.emplace_back(t.mesh, p.scene->meshes[t.mesh]);
+          p.scene->replaceMesh(t.mesh, t.geometry);
+        }
+    }
+    ~TruthGeometry() {
+      for (auto& [m, geometry] : held) p.scene->replaceMesh(m, std::move(geometry));
+    }
+  } truthGeometry(p);
   RenderOptions ro = targetRenderOptions(p);
   ro.cancel = cancel;
   return renderView(*p.scene, view, ro).image;
+}
+
+double shapeError(const Problem& p, const std::vector<float>& theta) {
+  if (!p.groundTruthKnown() || p.truthMeshes.empty()) return -1.0;
+  double sum = 0;
+  for (const auto& t : p.truthMeshes) {
+    const ParameterSlot& s = p.params.slots()[t.slot];
+    const TriangleMesh now = p.params.vertexMesh(*p.scene, s, theta.data() + s.offset);
+    sum += symmetricChamferDistance(now, t.geometry) / std::max(t.diagonal, 1e-30);
+  }
+  return sum / double(p.truthMeshes.size());
 }
 
 std::vector<Image> renderTargets(Problem& p) {
@@ -281,8 +343,12 @@ double parameterError(const Problem& p, const std::vector<float>& theta) {
   // Sampling parameters change the noise, never the mean: they have no ground truth.
   double sum = 0;
   size_t n = 0;
-  for (const ParameterSlot& s : p.params.slots()) {
+  for (size_t k = 0; k < p.params.slots().size(); ++k) {
+    const ParameterSlot& s = p.params.slots()[k];
     if (s.kind == ParamKind::LightLogits || s.kind == ParamKind::PixelLightLogits || s.kind == ParamKind::Survival) continue;
+    bool startedElsewhere = false;  // its truth has other vertices: shapeError measures it
+    for (const auto& t : p.truthMeshes) startedElsewhere = startedElsewhere || (t.slot == k && t.replaced);
+    if (startedElsewhere) continue;
     for (size_t i = s.offset; i < s.offset + s.size; ++i) sum += double(theta[i] - p.truth[i]) * double(theta[i] - p.truth[i]);
     n += s.size;
   }

@@ -34,6 +34,16 @@ struct Problem {
   // Uploaded targets (one per view); empty: rendered from the truth and the parameter error is known.
   std::vector<Image> givenTargets;
   bool groundTruthKnown() const { return givenTargets.empty(); }
+  // Per vertex parameter: the shape's own mesh, the truth that shape_error measures against and,
+  // when the job starts from another mesh (initial_mesh), what its targets are rendered with.
+  struct TruthMesh {
+    size_t slot = 0;  // index into params.slots()
+    uint32_t mesh = 0;
+    TriangleMesh geometry;  // world space
+    double diagonal = 0;    // of its bounding box
+    bool replaced = false;  // the scene holds a start mesh instead
+  };
+  std::vector<TruthMesh> truthMeshes;
 };
 
 // One evaluation of a job: burn-in evaluations come first, then one per gradient step. The
@@ -66,7 +76,13 @@ RenderOptions targetRenderOptions(const Problem& problem);  // how targets are r
 // EvaluationCancelled.
 Image renderTarget(Problem& problem, int view, const std::atomic<bool>* cancel = nullptr);
 
-// RMS distance of theta to the truth over the parameters that have one (not sampling/...); -1 when none does.
+// Jobs with vertex parameters and a known truth: the symmetric mean chamfer distance of each
+// parameter's mesh to its truth over the truth's bounding-box diagonal, averaged over them; -1
+// otherwise (core/geometry/mesh_distance.h).
+double shapeError(const Problem& problem, const std::vector<float>& theta);
+
+// RMS distance of theta to the truth over the parameters that have one (not sampling/..., nor the
+// vertices of a shape started from another mesh); -1 when none does.
 double parameterError(const Problem& problem, const std::vector<float>& theta);
 
 // The views of step `step`: a deterministic mini-batch (a seeded shuffle per step) or all views.

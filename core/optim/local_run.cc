@@ -21,6 +21,7 @@ LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&
     rep.seconds = clock.seconds();
     rep.loss = g->stats.loss();
     rep.parameterError = parameterError(p, loop.state().theta);
+    rep.shapeError = shapeError(p, loop.state().theta);
     rep.nonFinite = droppedSamples(g->stats);
     rep.stats = g->stats;
     out.history.push_back(rep);

@@ -14,6 +14,7 @@ struct StepReport {
   double seconds = 0;      // since the run started (burn-in included)
   double loss = 0;         // unbiased (two independent renders)
   double parameterError = 0;
+  double shapeError = -1;  // jobs with vertex parameters (problem.h's shapeError)
   uint64_t nonFinite = 0;
   invr::v1::GradientStats stats;
 };

@@ -187,13 +187,16 @@ void ConvergenceCsv::write() const {
     for (const auto& [c, v] : cells[i])
       if (index.emplace(c, columns.size()).second) columns.push_back(c);
   }
-  std::string text = "method,step,seconds,loss,param_error,image_error";
+  bool shapes = false;
+  for (const ConvergenceRow& r : rows_) shapes = shapes || r.shapeError >= 0;
+  std::string text = shapes ? "method,step,seconds,loss,param_error,image_error,shape_error" : "method,step,seconds,loss,param_error,image_error";
   for (const std::string& c : columns) text += "," + c;
   text += "\n";
   for (size_t i = 0; i < rows_.size(); ++i) {
     const ConvergenceRow& r = rows_[i];
     text += csvText(r.method) + "," + std::to_string(r.step) + "," + number(r.seconds) + "," + number(r.loss) + "," + number(r.paramError) + "," +
             number(r.imageError);
+    if (shapes) text += "," + number(r.shapeError);
     std::vector<std::string> row(columns.size());
     for (const auto& [c, v] : cells[i]) row[index[c]] = v;
     for (const std::string& v : row) text += "," + v;

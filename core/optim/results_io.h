@@ -30,7 +30,7 @@ std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir,
                                                const std::vector<float>& theta);
 
 // convergence.csv: one row per step (and eval's step 0), columns
-//   method, step, seconds, loss, param_error, image_error,
+//   method, step, seconds, loss, param_error, image_error, [shape_error: jobs with vertex parameters,]
 // then every field of the step's GradientStats (but its loss: the loss column) by its proto path
 // (seconds_primal, rays.camera, drops.primal, boundary.<term>.samples,
 // boundary.<term>.counters.<name>, ...; map entries by key), a column added when first seen. A cell is empty
@@ -45,6 +45,7 @@ struct ConvergenceRow {
   double paramError = std::numeric_limits<double>::quiet_NaN();
   double imageError = std::numeric_limits<double>::quiet_NaN();
   std::optional<invr::v1::GradientStats> stats;
+  double shapeError = std::numeric_limits<double>::quiet_NaN();  // a column only when some row has one
 };
 
 class ConvergenceCsv {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "core/restir/point_kd_tree.h"
+#include "core/geometry/point_kd_tree.h"
 
 namespace invr {
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 
 #include "core/error.h"
-#include "core/restir/point_kd_tree.h"
+#include "core/geometry/point_kd_tree.h"
 
 namespace invr {
 

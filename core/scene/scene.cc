@@ -151,6 +151,15 @@ void Scene::deformMesh(uint32_t m, const std::vector<Vec3>& positions) {
   ++geometryVersion_;
 }
 
+void Scene::replaceMesh(uint32_t m, TriangleMesh geometry) {
+  if (meshLight.at(m) >= 0) throw std::logic_error("replaceMesh: mesh " + meshNames[m] + " emits light");
+  if (motion.moving(m) && !motion.deforming(m)) throw std::logic_error("replaceMesh: mesh " + meshNames[m] + " moves rigidly");
+  meshes[m] = std::move(geometry);
+  computeFaceNormals(m);
+  if (accelerated_) accel.build(meshes, dynamicMeshes_);
+  ++geometryVersion_;
+}
+
 bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   RayHit rh;
   if (!accel.intersect(o, d, 0.f, tmax, rh)) return false;

@@ -111,6 +111,9 @@ class Scene {
   // first call rebuilds it with refit-friendly flags and marks the mesh moving and deforming),
   // geometry version. A call that changes no position changes nothing.
   void deformMesh(uint32_t mesh, const std::vector<Vec3>& positions);
+  // Replaces a mesh's geometry (a vertex parameter's start mesh, or its truth while targets are
+  // rendered): face normals, BVH rebuilt, geometry version. Not for emitters or rigidly moving meshes.
+  void replaceMesh(uint32_t mesh, TriangleMesh geometry);
 
   // Incremented whenever vertices move, so caches of surface positions know to re-place.
   uint64_t geometryVersion() const { return geometryVersion_; }

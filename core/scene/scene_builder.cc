@@ -1,5 +1,6 @@
 #include "core/scene/scene_builder.h"
 
+#include <algorithm>
 #include <limits>
 #include <map>
 #include <set>
@@ -406,6 +407,68 @@ std::unique_ptr<Scene> buildScene(const v1::Scene& spec, const AssetResolver& as
   }
   scene->finalize(use == SceneUse::Render);
   return scene;
+}
+
+TriangleMesh startMesh(const v1::MeshStart& start, const v1::Shape& shape, const TriangleMesh& truth, const AssetResolver& assets,
+                       const std::string& field) {
+  TriangleMesh m;
+  Vec3 lo(std::numeric_limits<float>::infinity()), hi = -lo;
+  for (const Vec3& p : truth.positions) { lo = vmin(lo, p); hi = vmax(hi, p); }
+  const Vec3 centre = (lo + hi) * 0.5f, size = hi - lo;
+  switch (start.start_case()) {
+    case v1::MeshStart::kFile: {
+      try {
+        m = loadMesh(assets.resolve(start.file(), field + ".file"), assets.budget);
+      } catch (const InputError& e) {
+        std::string what = e.what();
+        if (what.rfind(field, 0) == 0) throw;
+        rethrowWithMessage(e, field + ".file: " + what);
+      }
+      chargeMesh(assets, m.positions.size(), m.triangleCount(), field + ".file");
+      m.transform(transformOf(shape.transform(), field + " (the shape's transform)"));
+      break;
+    }
+    case v1::MeshStart::kSphere: {
+      const int n = start.sphere().subdivisions() > 0 ? start.sphere().subdivisions() : 3;
+      if (n > 7) fail(field + ".sphere.subdivisions", "must be in 1..7 (0: 3); 7 gives 163842 vertices");
+      chargeMesh(assets, uint64_t(10) * (uint64_t(1) << (2 * n)) + 2, uint64_t(20) * (uint64_t(1) << (2 * n)), field + ".sphere");
+      m = makeIcosphere(n);
+      const float r = 0.5f * std::max({size.x, size.y, size.z});
+      for (Vec3& p : m.positions) p = centre + p * r;
+      break;
+    }
+    case v1::MeshStart::kPlane: {
+      const int n = start.plane().subdivisions() > 0 ? start.plane().subdivisions() : 16;
+      if (n > 1024) fail(field + ".plane.subdivisions", "must be in 1..1024 (0: 16)");
+      chargeMesh(assets, uint64_t(n + 1) * uint64_t(n + 1), uint64_t(2) * uint64_t(n) * uint64_t(n), field + ".plane");
+      m = makeGrid(n);
+      // Across the two largest sides, facing along the smallest (right-handed: u x v = normal).
+      int k = 0;
+      for (int a = 1; a < 3; ++a)
+        if (size[a] < size[k]) k = a;
+      const int u = (k + 1) % 3, v = (k + 2) % 3;
+      for (Vec3& p : m.positions) {
+        Vec3 q = centre;
+        q[u] += 0.5f * size[u] * p.x;
+        q[v] += 0.5f * size[v] * p.y;
+        p = q;
+      }
+      break;
+    }
+    default: fail(field, "set file, sphere or plane");
+  }
+  m.normals.clear();
+  m.uvs.clear();
+  validateMesh(m, field);
+  return m;
+}
+
+v1::Scene jobSceneSpec(const v1::JobSpec& job) {
+  switch (job.scene_source_case()) {
+    case v1::JobSpec::kZoo: return zooScene(job.zoo());
+    case v1::JobSpec::kScene: return job.scene();
+    default: buildJobScene(job); return {};  // throws the reason
+  }
 }
 
 std::unique_ptr<Scene> buildJobScene(const v1::JobSpec& job, const AssetResolver& assets, SceneUse use) {

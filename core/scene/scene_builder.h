@@ -30,6 +30,15 @@ enum class SceneUse { Render, Validate };
 
 std::unique_ptr<Scene> buildScene(const invr::v1::Scene& spec, const AssetResolver& assets = {}, SceneUse use = SceneUse::Render);
 
+// The start mesh of a vertex parameter (optimization.parameters[].initial_mesh, job.proto's
+// MeshStart) for the shape `shape` of the job's scene, whose own geometry is `truth` (world space):
+// flat-shaded, in world space. Errors name `field`.
+TriangleMesh startMesh(const invr::v1::MeshStart& start, const invr::v1::Shape& shape, const TriangleMesh& truth, const AssetResolver& assets,
+                       const std::string& field);
+
+// The job's scene description: its zoo entry or inline scene (Mitsuba scenes are imported by the client).
+invr::v1::Scene jobSceneSpec(const invr::v1::JobSpec& job);
+
 // The job's scene: its zoo entry or inline scene.
 std::unique_ptr<Scene> buildJobScene(const invr::v1::JobSpec& job, const AssetResolver& assets = {}, SceneUse use = SceneUse::Render);
 

@@ -90,6 +90,49 @@ TEST(Problem, VertexParameterMistakesNameTheField) {
                   "optimization.parameters[1].name: parameter 'shapes/tall_box/translation': shape 'tall_box' has its vertices as a parameter");
 }
 
+// A vertex parameter started from another mesh (initial_mesh): the parameter has the start
+// mesh's vertices, the targets are still the shape's own (bit for bit the targets of the same job
+// without a start mesh), shape_error is 0 at the truth and positive at the start, and mistakes
+// name the field.
+TEST(Problem, StartMeshesReplaceTheGeometryButNotTheTruth) {
+  const std::string scene = R"("scene": {"materials": [{"name": "m", "diffuse": {}}],
+    "shapes": [{"name": "floor", "quad": {}, "material": "m", "transform": {"scale": {"x": 4, "y": 4, "z": 1}}},
+               {"name": "block", "box": {}, "material": "m", "transform": {"scale": {"x": 0.3, "y": 0.3, "z": 0.3}, "translate": {"z": 0.8}}}],
+    "lights": [{"name": "bulb", "point": {"position": {"x": 1, "z": 4}, "intensity": {"r": 10, "g": 10, "b": 10}}}],
+    "views": [{"eye": {"z": 4}, "target": {}, "up": {"y": 1}}], "film": {"width": 24, "height": 24}}, "render": {"spp": 4})";
+  auto job = [&](const std::string& param) {
+    return parseJobJson("{" + scene + R"(, "optimization": {"method": "METHOD_PT", "target_spp": 4, "parameters": [)" + param + "]}}", "job.json");
+  };
+  Problem plain = buildProblem(job(R"({"name": "shapes/block/vertices"})"));
+  Problem sphere = buildProblem(job(R"({"name": "shapes/block/vertices", "initial_mesh": {"sphere": {"subdivisions": 2}}})"));
+  EXPECT_EQ(plain.params.size(), 24u);
+  EXPECT_EQ(sphere.params.size(), 3u * 162u);
+  EXPECT_EQ(renderTarget(plain, 0).data(), renderTarget(sphere, 0).data());
+  EXPECT_EQ(sphere.scene->meshes[1].positions.size(), 162u) << "the start mesh is back after the target render";
+  EXPECT_LT(shapeError(plain, plain.initial), 1e-6);
+  const double start = shapeError(sphere, sphere.initial);
+  EXPECT_GT(start, 0.02);
+  EXPECT_LT(start, 0.5);
+  EXPECT_EQ(parameterError(sphere, sphere.initial), -1.0) << "a start mesh's vertices have no counterpart in the truth";
+  Problem plane = buildProblem(job(R"({"name": "block.vertex_positions", "initial_mesh": {"plane": {"subdivisions": 3}}})"));
+  EXPECT_EQ(plane.params.size(), 3u * 16u);
+  auto error = [&](const std::string& param) {
+    try {
+      buildProblem(job(param), {}, SceneUse::Validate);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_MENTIONS(error(R"({"name": "materials/m/albedo", "initial_mesh": {"sphere": {}}})"),
+                  "optimization.parameters[0].initial_mesh: a start mesh is for vertex parameters");
+  EXPECT_MENTIONS(error(R"({"name": "shapes/block/vertices", "initial_mesh": {"file": {"path": "/nonexistent/start.obj"}}})"),
+                  "optimization.parameters[0].initial_mesh.file");
+  EXPECT_MENTIONS(error(R"({"name": "shapes/block/vertices", "initial_mesh": {"sphere": {"subdivisions": 9}}})"),
+                  "optimization.parameters[0].initial_mesh.sphere.subdivisions");
+  EXPECT_MENTIONS(error(R"({"name": "shapes/block/vertices", "initial_mesh": {}})"), "optimization.parameters[0].initial_mesh: set file, sphere or plane");
+}
+
 // Moving discontinuities that are not mesh edges (issue 39): a shape resting on another surface
 // cuts it along a contact curve at every tilt, and a hard spot cone's border slides over the
 // moving surfaces it lights; no boundary term samples either. Such jobs are refused, naming the
