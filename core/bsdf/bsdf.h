@@ -32,6 +32,10 @@ struct Bsdf {
   float ior = 1.5f;
   Rgb reflectance{1.f};
   bool oneSided = false;  // opaque lobes are black from the back (Material::oneSided)
+  // Material::geometricSide: the caller's shading frame is already turned to wo's geometric side
+  // (shadingFrame in core/render/direct_light.h), so wo below the shading horizon neither mirrors
+  // the lobe nor blackens it. Diffuse only.
+  bool geometricSide = false;
 
   bool isDelta() const { return kind == BsdfKind::Mirror || kind == BsdfKind::Dielectric; }
   // Seen from the back of a one-sided material: no reflection at all.
@@ -39,6 +43,7 @@ struct Bsdf {
 
   // BSDF value times |cos theta_i|.
   Rgb eval(Vec3 wo, Vec3 wi) const {
+    if (geometricSide) return wi.z > 0.f ? albedo * (kInvPi * wi.z) : Rgb(0.f);
     if (isDelta() || blackFrom(wo)) return Rgb(0.f);
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
@@ -50,6 +55,11 @@ struct Bsdf {
   }
   // Adjoint of eval (delta lobes have no differentiable parameters here).
   BsdfDerivatives evalDerivatives(Vec3 wo, Vec3 wi) const {
+    if (geometricSide) {
+      BsdfDerivatives d;
+      if (wi.z > 0.f) d.dAlbedo = Rgb(kInvPi * wi.z);
+      return d;
+    }
     if (isDelta() || blackFrom(wo)) return {};
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
@@ -60,6 +70,7 @@ struct Bsdf {
     }
   }
   float pdf(Vec3 wo, Vec3 wi) const {
+    if (geometricSide) return wi.z > 0.f ? cosineHemispherePdf(wi.z) : 0.f;
     if (isDelta() || blackFrom(wo)) return 0.f;
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
@@ -73,6 +84,11 @@ struct Bsdf {
   // sample() rejects after drawing them (below the horizon) keep their density. With its
   // derivatives, what variance estimators need for the score of a BSDF decision (Yan et al. 2024).
   PdfDerivatives sampledPdf(Vec3 wo, Vec3 wi) const {
+    if (geometricSide) {
+      PdfDerivatives d;
+      d.pdf = wi.z > 0.f ? cosineHemispherePdf(wi.z) : 0.f;
+      return d;
+    }
     if (isDelta() || blackFrom(wo)) return {};
     if (wo.z < 0.f) { wo.z = -wo.z; wi.z = -wi.z; }
     switch (kind) {
@@ -84,6 +100,7 @@ struct Bsdf {
   }
   // The direction sample() draws from (uc, u) before any rejection (non-delta lobes).
   Vec3 sampledDirection(Vec3 wo, float uc, Vec2 u) const {
+    if (geometricSide) return sampleCosineHemisphere(u);
     bool flip = wo.z < 0.f;
     if (flip) wo.z = -wo.z;
     Vec3 wi;
@@ -97,6 +114,11 @@ struct Bsdf {
   }
   std::optional<BsdfSample> sample(Vec3 wo, float uc, Vec2 u) const {
     if (kind == BsdfKind::Dielectric) return dielectric::sample(ior, wo, uc);
+    if (geometricSide) {
+      const Vec3 wi = sampleCosineHemisphere(u);
+      if (wi.z <= 0.f) return std::nullopt;
+      return BsdfSample{wi, albedo, cosineHemispherePdf(wi.z)};
+    }
     if (blackFrom(wo)) return std::nullopt;
     bool flip = wo.z < 0.f;
     if (flip) wo.z = -wo.z;
@@ -122,6 +144,9 @@ struct Material {
   float ior = 1.5f;
   Rgb reflectance{1.f};
   bool oneSided = false;  // black from the back, like Mitsuba's bsdfs outside `twosided`
+  // Set on the diffuse material of a smooth-shaded (interpolated-normal) mesh when it first moves
+  // (Scene::applyShapeMotion): its side is the geometric one, not the shading normal's (Bsdf).
+  bool geometricSide = false;
   std::vector<std::string> aliases;  // other names parameters may use (Mitsuba ids folded into this one)
 
   bool hasAlbedo() const { return kind == BsdfKind::Diffuse || kind == BsdfKind::RoughPlastic; }
@@ -135,6 +160,7 @@ struct Material {
       b.alpha = std::max(roughness.evalScalar(uv), kMinAlpha);
     b.eta = eta; b.k = k; b.ior = ior; b.reflectance = reflectance;
     b.oneSided = oneSided;
+    b.geometricSide = geometricSide && kind == BsdfKind::Diffuse;
     return b;
   }
 };

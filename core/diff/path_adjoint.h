@@ -41,7 +41,7 @@ class PathAdjointVisitor {
     L_ += beta * p.contribution();
     if (shapes_ && v.depth == 0 && params_.moves(v.hit->mesh)) {
       beginShape(v);
-      const Vec3 wi = Frame(v.hit->ns).toWorld(p.wiLocal);
+      const Vec3 wi = v.frame->toWorld(p.wiLocal);
       shape_.add(dot3(adjoint_, beta * p.contribution()), lightEndGradient(scene_, p.light, v.hit->p, v.hit->ns, wi));
     }
     if (p.throughBsdf && hasBsdfParameters(params_, v.material))

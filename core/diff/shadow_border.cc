@@ -22,7 +22,7 @@ Rgb shadeFilmSample(const Scene& scene, const Camera& cam, float fx, float fy, R
   ++rays.camera;
   if (!scene.intersect(cam.eye, d, hit) || scene.meshLight[hit.mesh] >= 0) return Rgb(0.f);
   const Bsdf bsdf = scene.materials[size_t(scene.meshMaterial[hit.mesh])].at(hit.uv);
-  ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
+  ShadingPoint sp{&hit, &bsdf, shadingFrame(hit, bsdf, -d), Vec3(), -d};
   sp.wo = sp.frame.toLocal(-d);
   return shade(sp);
 }

@@ -150,6 +150,10 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       return float(v);
     };
     if (ps.has_initial() && ps.initial_values_size() > 0) fail(field, "set either initial or initial_values, not both");
+    if (s.kind == ParamKind::ShapeVertices && (ps.has_initial() || (ps.initial_values_size() > 0 && uint32_t(ps.initial_values_size()) != s.size)))
+      fail(field + (ps.has_initial() ? ".initial" : ".initial_values"),
+           "would put every vertex of '" + ps.name() + "' at one point; start from another mesh with initial_mesh, or give every coordinate (" +
+               std::to_string(s.size) + " values)");
     if (ps.has_initial()) std::fill(p.initial.begin() + s.offset, p.initial.begin() + s.offset + s.size, inBounds(field + ".initial", ps.initial()));
     const int n = ps.initial_values_size();
     if (n == 0) continue;

@@ -42,6 +42,14 @@ inline float powerHeuristic(float a, float b) {
   return a2 + b2 > 0.f ? a2 / (a2 + b2) : 0.f;
 }
 
+// The shading frame at a hit seen from woWorld: about the shading normal, turned to the geometric
+// side wo is on when the material asks (Bsdf::geometricSide). Then the shading normal's own horizon
+// (ns . wo = 0, a curve inside the faces next to a smooth mesh's silhouette) does not switch the
+// lobe: that curve moves with the mesh and no boundary term samples it.
+inline Frame shadingFrame(const SurfaceHit& h, const Bsdf& b, Vec3 woWorld) {
+  return Frame(b.geometricSide && dot(h.ng, woWorld) < 0.f ? -h.ns : h.ns);
+}
+
 // f |cos| of a light sample at the shading point; zero across the geometric surface
 // (all non-delta lobes here are reflective).
 inline Rgb bsdfTowards(const ShadingPoint& sp, Vec3 wi) {

@@ -48,6 +48,7 @@ struct WalkVertex {
   int material;
   Vec3 wo;  // local
   int depth;
+  const Frame* frame;  // the shading frame wo is local to (shadingFrame)
 };
 
 template <class Direct, class Visitor>
@@ -105,9 +106,9 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
 
     const int material = scene.meshMaterial[hit.mesh];
     const Bsdf bsdf = scene.materials[size_t(material)].at(hit.uv);
-    ShadingPoint sp{&hit, &bsdf, Frame(hit.ns), Vec3(), -d};
+    ShadingPoint sp{&hit, &bsdf, shadingFrame(hit, bsdf, -d), Vec3(), -d};
     sp.wo = sp.frame.toLocal(-d);
-    const WalkVertex vx{&hit, &bsdf, material, sp.wo, depth};
+    const WalkVertex vx{&hit, &bsdf, material, sp.wo, depth, &sp.frame};
     if (!bsdf.isDelta()) {
       DirectPath p;
       const uint64_t shadowBefore = ctx && ctx->stats ? ctx->stats->shadow : 0;

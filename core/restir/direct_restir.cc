@@ -18,7 +18,7 @@ float targetAt(const Scene& scene, const StoredReservoir& q, const LightSampleRe
   SurfaceHit h = pose ? scene.surfaceAt(*pose, q.mesh, q.tri, q.b1, q.b2) : scene.surfaceAt(q.mesh, q.tri, q.b1, q.b2);
   Bsdf b = scene.materials[size_t(scene.meshMaterial[h.mesh])].at(h.uv);
   const Vec3 wo = normalize(scene.cameras[q.view].eye - h.p);
-  ShadingPoint sp{&h, &b, Frame(h.ns), Vec3(), wo};
+  ShadingPoint sp{&h, &b, shadingFrame(h, b, wo), Vec3(), wo};
   sp.wo = sp.frame.toLocal(wo);
   LightSample ls = evalLightSample(scene, y, h.p);
   float t = risTarget(sp, ls);

@@ -83,6 +83,9 @@ void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
     motion.moving_[m] = 1;
     motion.restPositions_[m] = meshes[m].positions;
     motion.restNormals_[m] = meshes[m].normals;
+    // A smooth-shaded mesh that moves shades by its geometric side (Bsdf::geometricSide): the
+    // shading normal's horizon would otherwise be a moving discontinuity inside its faces.
+    if (!meshes[m].normals.empty()) materials[size_t(meshMaterial[m])].geometricSide = true;
     motion.movingList_.insert(std::lower_bound(motion.movingList_.begin(), motion.movingList_.end(), m), m);
     dynamicMeshes_[m] = true;
     if (accelerated_) {

@@ -910,12 +910,39 @@ TEST(ShapeGradient, UnsupportedJobsAreRefusedWithTheReason) {
     "views": [{"eye": {"z": 4}, "target": {}}], "film": {"width": 8, "height": 8}})");
   ParameterRegistry ballReg;
   ballReg.add(*smooth, "shapes/ball/translation");
+  EXPECT_NO_THROW(validateGradientJob(*smooth, ballReg, shapeOptions(GradientMethod::Pt))) << "pose parameters move smooth meshes";
+  ParameterRegistry ballVertices;
+  ballVertices.add(*smooth, "shapes/ball/vertices");
   try {
-    validateGradientJob(*smooth, ballReg, shapeOptions(GradientMethod::Pt));
-    ADD_FAILURE() << "a smooth moving mesh was accepted";
+    validateGradientJob(*smooth, ballVertices, shapeOptions(GradientMethod::Pt));
+    ADD_FAILURE() << "a smooth mesh's vertices were accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("interpolated vertex normals"), std::string::npos) << e.what();
   }
+}
+
+// A smooth-shaded sphere (interpolated normals) moving sideways over a floor under a point light.
+// Before its material shaded by the geometric side, the shading normal's horizon inside the faces
+// next to the silhouette was a moving jump no term sampled: here 1.2113e-2 against FD 1.2856e-2,
+// 5.8 % low (10 SE), and the test fails so (checked). Now that curve carries no jump.
+const char* kSmoothBallScene = R"({
+  "materials": [{"name": "grey", "diffuse": {"albedo": {"constant": {"r": 0.6, "g": 0.5, "b": 0.4}}}},
+                {"name": "white", "diffuse": {"albedo": {"constant": {"r": 0.8, "g": 0.8, "b": 0.8}}}}],
+  "shapes": [
+    {"name": "floor", "quad": {}, "material": "grey", "transform": {"scale": {"x": 4, "y": 4, "z": 1}}},
+    {"name": "ball", "sphere": {"rings": 12}, "material": "white",
+     "transform": {"scale": {"x": 0.5, "y": 0.5, "z": 0.5}, "rotate_xyz_degrees": {"z": 17}, "translate": {"x": 0.1, "y": 0.05, "z": 0.9}}}],
+  "lights": [{"name": "bulb", "point": {"position": {"x": 1.5, "y": -0.8, "z": 4}, "intensity": {"r": 14, "g": 14, "b": 14}}}],
+  "views": [{"eye": {"z": 4}, "target": {}, "up": {"y": 1}, "fov_y_degrees": 40}],
+  "film": {"width": 40, "height": 40}})";
+
+TEST(ShapeGradient, SmoothSphereMovingSideways) {
+  ShapeCase c(kSmoothBallScene, "shapes/ball/translation", {0.08f, -0.05f, 0.f});
+  ASSERT_FALSE(c.scene->meshes[1].normals.empty()) << "the sphere is smooth-shaded";
+  const MeanSE fd = validatedFd(c, 0, 0.01f, "smooth sphere x, point light", 32);
+  const Check r = run(c, 0, fd, shapeOptions(GradientMethod::Pt), 128, "smooth sphere x, pt");
+  expectMatches(r, "smooth sphere x");
+  EXPECT_LT(kSigmas * r.combined(), 0.05 * std::abs(fd.mean)) << "the 5.6 % error of old must not pass";
 }
 
 TEST(ShapeGradient, DeterministicForAnyThreadCount) {

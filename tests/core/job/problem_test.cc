@@ -131,6 +131,7 @@ TEST(Problem, StartMeshesReplaceTheGeometryButNotTheTruth) {
   EXPECT_MENTIONS(error(R"({"name": "shapes/block/vertices", "initial_mesh": {"sphere": {"subdivisions": 9}}})"),
                   "optimization.parameters[0].initial_mesh.sphere.subdivisions");
   EXPECT_MENTIONS(error(R"({"name": "shapes/block/vertices", "initial_mesh": {}})"), "optimization.parameters[0].initial_mesh: set file, sphere or plane");
+  EXPECT_MENTIONS(error(R"({"name": "shapes/block/vertices", "initial": 0.5})"), "optimization.parameters[0].initial: would put every vertex");
 }
 
 // Moving discontinuities that are not mesh edges (issue 39): a shape resting on another surface
