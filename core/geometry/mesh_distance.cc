@@ -55,16 +55,19 @@ std::vector<Vec3> surfacePoints(const TriangleMesh& m, int n) {
   return out;
 }
 
-// Mean distance from the points to mesh m's surface.
-double meanDistanceTo(const std::vector<Vec3>& points, const TriangleMesh& m) {
-  if (points.empty() || m.triangleCount() == 0) return 0.0;
+std::unique_ptr<PointKdIndex> centroidIndex(const TriangleMesh& m) {
   std::vector<float> xyz;
   xyz.reserve(3 * m.triangleCount());
   for (size_t t = 0; t < m.triangleCount(); ++t) {
     const Vec3 c = (vertexOf(m, t, 0) + vertexOf(m, t, 1) + vertexOf(m, t, 2)) / 3.f;
     xyz.insert(xyz.end(), {c.x, c.y, c.z});
   }
-  PointKdIndex index(std::move(xyz), 16);
+  return std::make_unique<PointKdIndex>(std::move(xyz), 16);
+}
+
+// Mean distance from the points to mesh m's surface, through the tree over m's centroids.
+double meanDistanceTo(const std::vector<Vec3>& points, const TriangleMesh& m, const PointKdIndex& index) {
+  if (points.empty() || m.triangleCount() == 0) return 0.0;
   constexpr size_t kCandidates = 16;
   const size_t k = std::min(kCandidates, m.triangleCount());
   double sum = 0;
@@ -86,7 +89,24 @@ double meanDistanceTo(const std::vector<Vec3>& points, const TriangleMesh& m) {
 }  // namespace
 
 double symmetricChamferDistance(const TriangleMesh& a, const TriangleMesh& b, int samplesPerMesh) {
-  return 0.5 * (meanDistanceTo(surfacePoints(a, samplesPerMesh), b) + meanDistanceTo(surfacePoints(b, samplesPerMesh), a));
+  return SurfaceDistance(a, samplesPerMesh).symmetricChamferTo(b);
+}
+
+struct SurfaceDistance::Index {
+  std::unique_ptr<PointKdIndex> tree;
+};
+
+SurfaceDistance::SurfaceDistance(TriangleMesh mesh, int samples)
+    : mesh_(std::move(mesh)), samples_(samples), points_(surfacePoints(mesh_, samples)), index_(std::make_unique<Index>()) {
+  if (mesh_.triangleCount() > 0) index_->tree = centroidIndex(mesh_);
+}
+
+SurfaceDistance::~SurfaceDistance() = default;
+
+double SurfaceDistance::symmetricChamferTo(const TriangleMesh& other) const {
+  if (mesh_.triangleCount() == 0 || other.triangleCount() == 0) return 0.0;
+  const auto otherTree = centroidIndex(other);
+  return 0.5 * (meanDistanceTo(points_, other, *otherTree) + meanDistanceTo(surfacePoints(other, samples_), mesh_, *index_->tree));
 }
 
 double boundingBoxDiagonal(const TriangleMesh& mesh) {

@@ -8,7 +8,6 @@
 #include "core/diff/gradient_engine.h"
 #include "core/diff/gradient_job_check.h"
 #include "core/error.h"
-#include "core/geometry/mesh_distance.h"
 #include "core/image/image.h"
 #include "core/render/renderer.h"
 
@@ -112,7 +111,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       if (!shapeSpec || mesh >= p.scene->meshNames.size()) fail(field + ".name", "parameter '" + ps.name() + "': no shape named '" + shape + "'");
       if (p.scene->meshLight[mesh] >= 0) fail(field + ".name", "parameter '" + ps.name() + "': shape '" + shape + "' emits light");
       if (p.params.moves(mesh)) fail(field + ".initial_mesh", "shape '" + shape + "' is already moved by another parameter");
-      replaced = Problem::TruthMesh{0, mesh, p.scene->meshes[mesh], 0.0, true};
+      replaced = Problem::TruthMesh{0, mesh, p.scene->meshes[mesh], 0.0, true, nullptr};
       p.scene->replaceMesh(mesh, startMesh(ps.initial_mesh(), *shapeSpec, p.scene->meshes[mesh], assets, "optimization." + field + ".initial_mesh"));
     }
     try {
@@ -122,9 +121,10 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     }
     const ParameterSlot& added = p.params.slots().back();
     if (added.kind == ParamKind::ShapeVertices) {
-      Problem::TruthMesh t = replaced ? *replaced : Problem::TruthMesh{0, uint32_t(added.shape), p.scene->meshes[size_t(added.shape)], 0.0, false};
+      Problem::TruthMesh t = replaced ? *replaced : Problem::TruthMesh{0, uint32_t(added.shape), p.scene->meshes[size_t(added.shape)], 0.0, false, nullptr};
       t.slot = p.params.slots().size() - 1;
       t.diagonal = boundingBoxDiagonal(t.geometry);
+      t.distance = std::make_shared<const SurfaceDistance>(t.geometry);
       p.truthMeshes.push_back(std::move(t));
     }
   }
@@ -311,7 +311,7 @@ double shapeError(const Problem& p, const std::vector<float>& theta) {
   for (const auto& t : p.truthMeshes) {
     const ParameterSlot& s = p.params.slots()[t.slot];
     const TriangleMesh now = p.params.vertexMesh(*p.scene, s, theta.data() + s.offset);
-    sum += symmetricChamferDistance(now, t.geometry) / std::max(t.diagonal, 1e-30);
+    sum += t.distance->symmetricChamferTo(now) / std::max(t.diagonal, 1e-30);
   }
   return sum / double(p.truthMeshes.size());
 }

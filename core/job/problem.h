@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "core/diff/gradient_engine.h"
+#include "core/geometry/mesh_distance.h"
 #include "core/job/optimizer_settings.h"
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"
@@ -42,6 +43,7 @@ struct Problem {
     TriangleMesh geometry;  // world space
     double diagonal = 0;    // of its bounding box
     bool replaced = false;  // the scene holds a start mesh instead
+    std::shared_ptr<const SurfaceDistance> distance;  // to the geometry, built once
   };
   std::vector<TruthMesh> truthMeshes;
 };
