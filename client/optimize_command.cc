@@ -84,6 +84,11 @@ void runOptimize(const OptimizeArgs& a) {
     writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
     writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);
   }
+  // Where the run started, for side-by-side comparison (the scene goes back to the result after).
+  problem.params.write(problem.initial, *problem.scene);
+  for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v)
+    writeImage(dir / ("initial_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
+  problem.params.write(result.theta, *problem.scene);
   // Variance-aware jobs and sampling parameters: what the optimised sampling does (docs/variance.md).
   for (const std::string& f : writeSelectionResults(dir, problem.params, *problem.scene, result.theta)) std::cout << "wrote " << f << "\n";
   if (problem.gradient.variance.enabled) {
@@ -101,7 +106,7 @@ void runOptimize(const OptimizeArgs& a) {
                                      : std::string())
             << ", loss "
             << result.history.front().loss << " -> " << last.loss << " in " << last.seconds << " s\n"
-            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, final/target renders)\n";
+            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, initial/target/final renders)\n";
 }
 
 }  // namespace

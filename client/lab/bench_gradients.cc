@@ -14,6 +14,7 @@
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
 #include "core/optim/equal_time.h"
+#include "core/optim/optimization_loop.h"
 #include "core/error.h"
 #include "core/math/statistics.h"
 #include "core/stopwatch.h"
@@ -442,11 +443,15 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   };
   if (a.seeds < 1) throw InputError("--seeds must be at least 1");
   // Each method runs once per seed (the job's seed, then the next ones); the figures are medians.
-  std::vector<double> errors, tails;
+  std::vector<double> errors, tails, shapeErrors;
   BenchReport::Json methods = BenchReport::Json::object();
+  // Meshes recovered vertex by vertex (from another start mesh: no parameter error) are judged by
+  // their shape error, the chamfer distance to the truth over its bounding-box diagonal.
+  const bool shapes = shapeError(s.problem, s.problem.initial) >= 0;
+  const bool parameters = parameterError(s.problem, s.problem.initial) >= 0;
   const uint64_t firstSeed = s.problem.seed;
   for (const Variant& v : variants) {
-    std::vector<double> finalErrors, finalDegrees, tailErrors;
+    std::vector<double> finalErrors, finalDegrees, tailErrors, finalShape, tailShape;
     for (int k = 0; k < a.seeds; ++k) {
       s.problem.seed = firstSeed + uint64_t(k);
       EqualTimeOptions budget;
@@ -458,6 +463,12 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       finalErrors.push_back(run.history.back().parameterError);
       tailErrors.push_back(tailParameterError(run.history, a.seconds));  // where it settled
       if (!rotation.empty()) finalDegrees.push_back(degreesOff(run.theta));
+      if (shapes) {
+        finalShape.push_back(run.history.back().shapeError);
+        tailShape.push_back(tailShapeError(run.history, a.seconds));
+        std::cerr << "[" << a.scene << "] " << label << ": " << run.history.back().step << " steps, shape error "
+                  << BenchReport::fmt(run.history.front().shapeError) << " -> " << BenchReport::fmt(finalShape.back()) << "\n";
+      }
       if (k == 0) {
         rep.number("steps_" + v.name, run.history.back().step);
         rep.number("image_error_" + v.name, run.history.back().imageError);
@@ -467,49 +478,66 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     s.problem.seed = firstSeed;
     errors.push_back(median(finalErrors));
     BenchReport::Json m = BenchReport::Json::object();
-    m["median_final_param_error"] = errors.back();
-    m["final_param_error"] = finalErrors;
     tails.push_back(median(tailErrors));
-    m["median_param_error_tail"] = tails.back();
-    m["param_error_tail"] = tailErrors;
+    if (parameters) {
+      m["median_final_param_error"] = errors.back();
+      m["final_param_error"] = finalErrors;
+      m["median_param_error_tail"] = tails.back();
+      m["param_error_tail"] = tailErrors;
+    }
     if (!rotation.empty()) {
       m["median_final_error_degrees"] = median(finalDegrees);
       m["final_error_degrees"] = finalDegrees;
     }
+    if (shapes) {
+      shapeErrors.push_back(median(finalShape));
+      m["median_shape_error"] = shapeErrors.back();
+      m["shape_error"] = finalShape;
+      m["median_shape_error_tail"] = median(tailShape);
+      m["shape_error_tail"] = tailShape;
+    }
     methods[v.name] = std::move(m);
   }
   rep.number("seeds", a.seeds);
-  if (!rotation.empty()) {
+  // One figure per variant, as a JSON object and as "name value, ..." in the table.
+  auto perVariant = [&](const std::string& key, const std::vector<double>& values, const std::string& note) {
+    BenchReport::Json json = BenchReport::Json::object();
     std::string shown;
-    BenchReport::Json degrees = BenchReport::Json::object();
     for (size_t i = 0; i < variants.size(); ++i) {
-      const double d = methods[variants[i].name]["median_final_error_degrees"].get<double>();
-      degrees[variants[i].name] = d;
-      shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(d);
+      json[variants[i].name] = values[i];
+      shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(values[i]);
     }
-    rep.value("median_final_error_degrees", std::move(degrees), shown + " (median over seeds of the final rotation RMSE)");
+    rep.value(key, std::move(json), shown + " " + note);
+  };
+  if (!rotation.empty()) {
+    std::vector<double> degrees;
+    for (const Variant& v : variants) degrees.push_back(methods[v.name]["median_final_error_degrees"].get<double>());
+    perVariant("median_final_error_degrees", degrees, "(median over seeds of the final rotation RMSE)");
   }
-  rep.value("methods", std::move(methods), "per method: final and last-quarter parameter errors per seed and their medians");
-  BenchReport::Json paramError = BenchReport::Json::object();
-  std::string shown;
-  for (size_t i = 0; i < variants.size(); ++i) {
-    paramError[variants[i].name] = errors[i];
-    shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(errors[i]);
-  }
-  rep.value("param_error", std::move(paramError), shown + " (RMSE of the parameters)");
-  BenchReport::Json tailJson = BenchReport::Json::object();
-  shown.clear();
-  for (size_t i = 0; i < variants.size(); ++i) {
-    tailJson[variants[i].name] = tails[i];
-    shown += std::string(i ? ", " : "") + variants[i].name + " " + BenchReport::fmt(tails[i]);
-  }
-  rep.value("param_error_tail", std::move(tailJson),
-            shown + " (median over seeds of the RMS parameter error over the last quarter of the budget)");
+  rep.value("methods", std::move(methods),
+            shapes ? "per method: final and last-quarter shape (and parameter) errors per seed and their medians"
+                   : "per method: final and last-quarter parameter errors per seed and their medians");
   auto indexOf = [&](const std::string& n) {
     for (size_t i = 0; i < variants.size(); ++i)
       if (variants[i].name == n) return int(i);
     return -1;
   };
+  if (shapes) {
+    perVariant("median_shape_error", shapeErrors,
+               "(median over seeds of the final chamfer distance over the truth's bounding-box diagonal; target <= 0.01 for restir)");
+    for (const char* baseline : {"pt", "ris", "forward_only"})
+      if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
+        rep.number(std::string("shape_error_ratio_") + baseline + "_over_restir",
+                   shapeErrors[size_t(indexOf(baseline))] / shapeErrors[size_t(indexOf("restir"))],
+                   a.scene == "relief" && std::string(baseline) != "forward_only" ? "(target >= 2 on the relief)" : "");
+  }
+  if (!parameters) {
+    rep.text("csv", a.csv);
+    rep.print(a.json);
+    return;
+  }
+  perVariant("param_error", errors, "(RMSE of the parameters)");
+  perVariant("param_error_tail", tails, "(median over seeds of the RMS parameter error over the last quarter of the budget)");
   for (const char* baseline : {"pt", "ris", "forward_only"})
     if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
       rep.number(std::string("ratio_") + baseline + "_over_restir", errors[size_t(indexOf(baseline))] / errors[size_t(indexOf("restir"))],
@@ -523,6 +551,94 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   }
   rep.text("csv", a.csv);
   rep.print(a.json);
+}
+
+struct VertexStepArgs {
+  std::string scene = "relief";
+  std::string shape;  // a shape of the scene to move instead of the job's vertex parameter's
+  int steps = 12;
+  std::vector<std::string> methods{"pt", "ris", "restir"};
+  bool json = false;
+};
+
+// What moving a mesh by its vertices costs over moving it rigidly: whole optimisation steps
+// (gradient, optimiser update with the Large Steps solve, the mesh deformed or moved and its BVH
+// refit) on the scene's own mesh, with the zoo job's vertex parameter (its start mesh dropped, so
+// both move the same mesh) against the same shape's translation. The two runs alternate step by
+// step to share the machine's noise.
+BenchReport benchVertexStep(const VertexStepArgs& a) {
+  if (a.steps < 2) throw InputError("--steps must be at least 2");
+  v1::JobSpec zoo = zooJob(a.scene);
+  const v1::ParameterSpec* vertexSpec = nullptr;
+  if (!a.shape.empty()) {
+    // Another scene's shape: its vertices under the mesh jobs' optimiser settings.
+    zoo.mutable_optimization()->clear_parameters();
+    auto* ps = zoo.mutable_optimization()->add_parameters();
+    ps->set_name("shapes/" + a.shape + "/vertices");
+    ps->set_large_steps_lambda(10);
+    zoo.mutable_optimization()->set_optimizer("adam_uniform");
+  }
+  for (const auto& ps : zoo.optimization().parameters())
+    if (ps.name().size() > 9 && ps.name().compare(ps.name().size() - 9, 9, "/vertices") == 0) vertexSpec = &ps;
+  if (!vertexSpec) throw InputError("--scene " + a.scene + ": its job has no vertex parameter (use octagon or relief, or name a shape with --shape)");
+  const std::string shapePath = vertexSpec->name().substr(0, vertexSpec->name().size() - 9);  // shapes/<s>
+  v1::JobSpec vertexJob = zoo, rigidJob = zoo;
+  vertexJob.mutable_optimization()->mutable_parameters(0)->clear_initial_mesh();
+  vertexJob.mutable_optimization()->mutable_parameters(0)->set_learning_rate(1e-4);  // small moves: the mesh stays near itself
+  rigidJob.mutable_optimization()->clear_parameters();
+  auto* t = rigidJob.mutable_optimization()->add_parameters();
+  t->set_name(shapePath + "/translation");
+  t->set_learning_rate(1e-4);
+  rigidJob.mutable_optimization()->set_optimizer("adam");
+  for (v1::JobSpec* j : {&vertexJob, &rigidJob}) j->mutable_optimization()->set_target_spp(16);  // targets are not timed
+  struct Run {
+    std::string name;
+    Setup setup;
+  };
+  Run runs[2] = {{"vertex", {buildProblem(vertexJob), {}}}, {"rigid", {buildProblem(rigidJob), {}}}};
+  for (Run& r : runs) r.setup.targets = renderTargets(r.setup.problem);
+  BenchReport rep("vertex-step");
+  rep.text("scene", a.scene);
+  rep.text("parameters", vertexSpec->name() + " (" + std::to_string(runs[0].setup.problem.params.size()) + " values) against " + shapePath +
+                             "/translation");
+  rep.number("triangles", double(runs[0].setup.problem.scene->meshes.empty() ? 0 : [&] {
+               size_t n = 0;
+               for (const auto& m : runs[0].setup.problem.scene->meshes) n += m.triangleCount();
+               return n;
+             }()));
+  for (const std::string& name : a.methods) {
+    const GradientMethod m = gradientMethodFromName(name);
+    std::vector<double> seconds[2];
+    std::unique_ptr<LocalEvaluator> eval[2];
+    std::unique_ptr<OptimizationLoop> loop[2];
+    for (int k = 0; k < 2; ++k) {
+      Problem& p = runs[k].setup.problem;
+      eval[k] = std::make_unique<LocalEvaluator>(p, runs[k].setup.targets, optionsFor(p, m, 1));
+      LoopState begin;
+      begin.theta = p.initial;
+      loop[k] = std::make_unique<OptimizationLoop>(p, std::move(begin), m == GradientMethod::Restir ? p.burnIn : 0, 0);
+    }
+    for (int i = 0; i < a.steps + 1; ++i)
+      for (int k = 0; k < 2; ++k) {
+        std::optional<GradientResult> g;
+        double used = 0;
+        do {  // burn-in evaluations are not steps
+          Stopwatch clock;
+          g = loop[k]->next(std::ref(*eval[k]));
+          used = clock.seconds();
+        } while (!g);
+        if (i > 0) seconds[k].push_back(used);  // the first step warms caches and allocations
+      }
+    double median[2];
+    for (int k = 0; k < 2; ++k) {
+      std::sort(seconds[k].begin(), seconds[k].end());
+      median[k] = seconds[k][seconds[k].size() / 2];
+      rep.number(name + "_" + runs[k].name + "_step_seconds", median[k], "s (median of " + std::to_string(a.steps) + ")");
+    }
+    rep.number(name + "_ratio_vertex_over_rigid", median[0] / median[1], "(target <= 1.5)");
+    for (Run& r : runs) r.setup.problem.params.write(r.setup.problem.initial, *r.setup.problem.scene);
+  }
+  return rep;
 }
 
 }  // namespace
@@ -580,6 +696,15 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
       ->capture_default_str();
   rc->add_flag("--json", ra->json, "print one JSON object");
   rc->callback([ra, &exitCode] { runBenchReconstruct(*ra); exitCode = 0; });
+
+  auto va = std::make_shared<VertexStepArgs>();
+  auto* vs = bench.add_subcommand("vertex-step", "A whole optimisation step with a mesh's vertices as the parameter against its rigid translation, same mesh");
+  vs->add_option("--scene", va->scene, "zoo scene whose job has a vertex parameter (octagon or relief), or any with --shape")->capture_default_str();
+  vs->add_option("--shape", va->shape, "move this shape of the scene instead (e.g. --scene knot --shape knot; Large Steps lambda 10, adam_uniform)");
+  vs->add_option("--steps", va->steps, "timed steps of each (after one untimed)")->capture_default_str();
+  vs->add_option("--methods", va->methods, "pt, ris, restir")->delimiter(',')->check(CLI::IsMember({"pt", "ris", "restir"}))->capture_default_str();
+  vs->add_flag("--json", va->json, "print one JSON object");
+  vs->callback([va, &exitCode] { benchVertexStep(*va).print(va->json); exitCode = 0; });
 }
 
 }  // namespace invr::cli

@@ -286,7 +286,8 @@ const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::
     slot.channels = 3;
     slot.lower = -std::numeric_limits<float>::infinity();
     slot.upper = std::numeric_limits<float>::infinity();
-    slot.learningRate = 0.01f;
+    // In the scene's units: a step of 1/400 of its radius (0.011 on the zoo's pose scene).
+    slot.learningRate = 2.5e-3f * scene.radius;
   } else if (parts[2] == "rotation") {
     slot.kind = ParamKind::ShapeRotation;
     slot.channels = 3;

@@ -109,6 +109,16 @@ TriangleMesh makeGrid(int cells) {
   return m;
 }
 
+TriangleMesh makeHeightfield(int cells, const std::function<float(float, float)>& height) {
+  TriangleMesh m = makeGrid(cells);
+  for (Vec3& p : m.positions) {
+    const float u = 0.5f * (p.x + 1.f), v = 0.5f * (p.y + 1.f);
+    m.uvs.push_back({u, v});
+    p.z = height(u, v);
+  }
+  return m;
+}
+
 TriangleMesh makeQuad() {
   TriangleMesh m;
   m.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,8 @@ TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tub
 // over [-1, 1]^2 in the xy plane, normal +z.
 TriangleMesh makeIcosphere(int subdivisions);
 TriangleMesh makeGrid(int cells);
+// A relief: makeGrid(cells) with uvs ((x + 1) / 2, (y + 1) / 2), each vertex at z = height(u, v).
+TriangleMesh makeHeightfield(int cells, const std::function<float(float u, float v)>& height);
 
 // Throws InputError("<what>: ...") if the mesh is empty, has out-of-range indices, non-finite
 // positions, normals or uvs, attribute arrays whose size differs from the positions, an edge

@@ -1,5 +1,9 @@
 #include "core/image/procedural.h"
 
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
 #include "core/error.h"
 #include "core/math/rng.h"
 
@@ -53,8 +57,36 @@ Image makeProceduralImage(const ProceduralSpec& s) {
         Rgb sky = v < 0.5f ? s.b * (0.5f + 0.5f * (0.5f - v) * 2.f) : s.b * 0.2f;
         im.setRgb(x, y, sky + s.a * lobe);
       }
+  } else if (s.pattern == "bumps") {
+    // Smooth hills (a relief's heights): a sum of Gaussians of random place, width and height,
+    // scaled so that the lowest texel is b and the highest a.
+    Sampler rng(RngKey{s.seed, 11, 0, 0, 0});
+    struct Bump {
+      float u, v, width, height;
+    };
+    std::vector<Bump> bumps;
+    for (int k = 0; k < 12; ++k) {
+      const float u = rng.next1D(), v = rng.next1D(), w = 0.06f + 0.12f * rng.next1D(), h = 0.3f + 0.7f * rng.next1D();
+      bumps.push_back({u, v, w, h});
+    }
+    std::vector<float> t(size_t(s.width) * size_t(s.height));
+    float lo = 1e30f, hi = -1e30f;
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < s.width; ++x) {
+        const float u = (float(x) + 0.5f) / float(s.width), v = (float(y) + 0.5f) / float(s.height);
+        float sum = 0;
+        for (const Bump& b : bumps) sum += b.height * std::exp(-((u - b.u) * (u - b.u) + (v - b.v) * (v - b.v)) / (2.f * b.width * b.width));
+        t[size_t(y) * size_t(s.width) + size_t(x)] = sum;
+        lo = std::min(lo, sum);
+        hi = std::max(hi, sum);
+      }
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < s.width; ++x) {
+        const float f = (t[size_t(y) * size_t(s.width) + size_t(x)] - lo) / std::max(hi - lo, 1e-20f);
+        im.setRgb(x, y, s.b * (1.f - f) + s.a * f);
+      }
   } else {
-    throw InputError("procedural image: unknown pattern '" + s.pattern + "' (use checker, painting, backlit_sky or gradient)");
+    throw InputError("procedural image: unknown pattern '" + s.pattern + "' (use checker, painting, backlit_sky, gradient or bumps)");
   }
   return im;
 }

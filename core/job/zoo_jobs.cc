@@ -121,6 +121,22 @@ v1::JobSpec zooJob(const std::string& name) {
     o->set_loss("l2");
     o->set_steps(150);
     o->set_learning_rate_half_life(75);
+  } else if (name == "octagon" || name == "relief") {
+    // Meshes (Wang et al. 2023, Figs. 13-14): every vertex of a start mesh (an icosphere around the
+    // solid, a plane across the relief) with Large Steps (Nicolet et al. 2021) and Adam with one
+    // second moment per vertex parameter, as Mitsuba's shape tutorial.
+    auto* p = o->add_parameters();
+    const bool octagon = name == "octagon";
+    p->set_name(octagon ? "shapes/solid/vertices" : "shapes/relief/vertices");
+    if (octagon) p->mutable_initial_mesh()->mutable_sphere()->set_subdivisions(3);
+    else p->mutable_initial_mesh()->mutable_plane()->set_subdivisions(32);
+    p->set_large_steps_lambda(octagon ? 8 : 10);
+    p->set_learning_rate(octagon ? 0.02 : 0.01);
+    o->set_optimizer("adam_uniform");
+    o->set_loss("l2");
+    o->set_views_per_step(octagon ? 4 : 2);
+    o->set_steps(500);
+    o->set_learning_rate_half_life(150);
   } else if (name == "roulette") {
     // Yan et al. 2024, Fig. 9: survival per bounce against time x variance (Eq. 33, 36), from
     // q = 1 (no roulette); 8 bounces.

@@ -9,14 +9,26 @@
 
 namespace invr {
 
-double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
+namespace {
+
+double tailError(const std::vector<EqualTimePoint>& history, double budgetSeconds, double EqualTimePoint::*error) {
   double sum = 0;
   size_t n = 0;
   for (const EqualTimePoint& pt : history) {
-    if (!(pt.parameterError >= 0)) return pt.parameterError;
-    if (pt.step > 0 && pt.seconds >= 0.75 * budgetSeconds) sum += pt.parameterError * pt.parameterError, ++n;
+    if (!(pt.*error >= 0)) return pt.*error;
+    if (pt.step > 0 && pt.seconds >= 0.75 * budgetSeconds) sum += pt.*error * pt.*error, ++n;
   }
-  return n ? std::sqrt(sum / double(n)) : history.back().parameterError;
+  return n ? std::sqrt(sum / double(n)) : history.back().*error;
+}
+
+}  // namespace
+
+double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
+  return tailError(history, budgetSeconds, &EqualTimePoint::parameterError);
+}
+
+double tailShapeError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
+  return tailError(history, budgetSeconds, &EqualTimePoint::shapeError);
 }
 
 ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& pt) {
@@ -27,6 +39,7 @@ ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& p
   r.loss = pt.loss;
   r.paramError = pt.parameterError;
   r.imageError = pt.imageError;
+  if (pt.shapeError >= 0) r.shapeError = pt.shapeError;
   r.stats = pt.stats;
   return r;
 }
@@ -50,6 +63,7 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
   };
   EqualTimePoint start;
   start.parameterError = p.groundTruthKnown() ? parameterError(p, out.theta) : std::numeric_limits<double>::quiet_NaN();
+  start.shapeError = shapeError(p, out.theta);
   if (meter) start.imageError = meter->measure(out.theta);
   record(start);
   const int checkpoints = std::max(1, budget.imageErrorCheckpoints);
@@ -74,6 +88,7 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
     pt.loss = g->stats.loss();
     pt.stats = g->stats;
     pt.parameterError = p.groundTruthKnown() ? parameterError(p, out.theta) : std::numeric_limits<double>::quiet_NaN();
+    pt.shapeError = shapeError(p, out.theta);  // like the image error, measured off the clock
     bool last = used >= budget.seconds;
     if (meter && (last || used >= budget.seconds * nextCheckpoint / checkpoints)) {
       pt.imageError = meter->measure(out.theta);

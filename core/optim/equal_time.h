@@ -25,6 +25,7 @@ struct EqualTimePoint {
   double seconds = 0;    // budget used so far (measurement excluded)
   double loss = std::numeric_limits<double>::quiet_NaN();  // NaN at step 0
   double parameterError = 0;
+  double shapeError = -1;  // jobs with a vertex parameter and a known truth mesh (problem.h's shapeError)
   double imageError = std::numeric_limits<double>::quiet_NaN();  // NaN between checkpoints
   std::optional<invr::v1::GradientStats> stats;  // the step's (none at step 0)
 };
@@ -46,6 +47,8 @@ ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& p
 // its noise floor keeps moving, so its final value is one draw from that floor. Falls back to the
 // final value when no step fell in that quarter, and keeps the -1 of jobs without ground truth.
 double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds);
+// The same for the shape error (-1 for jobs without one).
+double tailShapeError(const std::vector<EqualTimePoint>& history, double budgetSeconds);
 
 // Optimises problem.initial with `options` (the problem's own gradient settings are ignored)
 // until the budget is spent. `meter` may be null (no image error). `onPoint` sees every point.

@@ -228,7 +228,31 @@ TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const st
       chargeMesh(assets, uint64_t(seg) + 1, uint64_t(seg), field + ".disk");
       return makeDisk(seg);
     }
-    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder, disk or torus_knot)");
+    case v1::Shape::kHeightfield: {
+      const auto& h = s.heightfield();
+      const int cells = h.cells() > 0 ? h.cells() : 64;
+      if (cells > 1024) fail(field + ".heightfield.cells", "must be in 1..1024");
+      if (!h.has_height()) fail(field + ".heightfield.height", "needs a procedural image (e.g. pattern \"bumps\")");
+      v1::Texture t;
+      *t.mutable_procedural() = h.height();
+      const std::shared_ptr<Image> im = loadTextureImage(t, assets, field + ".heightfield.height", false);
+      chargeMesh(assets, uint64_t(cells + 1) * uint64_t(cells + 1), uint64_t(2) * uint64_t(cells) * uint64_t(cells), field + ".heightfield");
+      // Bilinear in the image (texel centres at (i + 0.5) / width), channels averaged.
+      auto height = [&](float u, float v) {
+        const float x = std::clamp(u * float(im->width()) - 0.5f, 0.f, float(im->width() - 1));
+        const float y = std::clamp(v * float(im->height()) - 0.5f, 0.f, float(im->height() - 1));
+        const int x0 = int(x), y0 = int(y), x1 = std::min(x0 + 1, im->width() - 1), y1 = std::min(y0 + 1, im->height() - 1);
+        const float fx = x - float(x0), fy = y - float(y0);
+        auto mean = [&](int px, int py) {
+          float sum = 0;
+          for (int c = 0; c < im->channels(); ++c) sum += im->at(px, py, c);
+          return sum / float(im->channels());
+        };
+        return (1 - fy) * ((1 - fx) * mean(x0, y0) + fx * mean(x1, y0)) + fy * ((1 - fx) * mean(x0, y1) + fx * mean(x1, y1));
+      };
+      return makeHeightfield(cells, height);
+    }
+    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder, disk, torus_knot or heightfield)");
   }
 }
 

@@ -3,11 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/image/procedural.h"
 #include "core/scene/zoo.h"
 #include "test_util.h"
 
@@ -108,6 +110,47 @@ TEST(SceneBuilder, TextureThatFailsToLoad) {
     EXPECT_MENTIONS(e, "scene.materials[0] (m).diffuse.albedo.image");
     EXPECT_MENTIONS(e, file);
   }
+}
+
+// The relief primitive: a grid raised by its image. A horizontal "gradient" from 0 to 1 over 4
+// texels has texel centres at u = 0.125 ... 0.875, so bilinear lookup gives height u clamped to
+// that range; nothing else may change the heights.
+TEST(SceneBuilder, HeightfieldRaisesAGridByItsImage) {
+  auto job = parseJobJson("{\"scene\": " + withShape(R"({"name": "h", "material": "m", "heightfield": {"cells": 8, "height":
+      {"pattern": "gradient", "width": 4, "color_a": {}, "color_b": {"r": 1, "g": 1, "b": 1}}}})") + "}", "job.json");
+  auto scene = buildJobScene(job, {});
+  ASSERT_EQ(scene->meshes.size(), 1u);
+  const TriangleMesh& m = scene->meshes[0];
+  EXPECT_EQ(m.positions.size(), 81u);
+  EXPECT_EQ(m.triangleCount(), 128u);
+  ASSERT_EQ(m.uvs.size(), m.positions.size());
+  EXPECT_TRUE(m.normals.empty());  // flat-shaded
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    const float u = 0.5f * (m.positions[i].x + 1.f);
+    EXPECT_NEAR(m.uvs[i].x, u, 1e-6f);
+    EXPECT_NEAR(m.positions[i].z, std::clamp(u, 0.125f, 0.875f), 1e-5f) << "vertex " << i;
+  }
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "h", "material": "m", "heightfield": {"cells": 2000, "height": {"pattern": "bumps"}}})")),
+                  "scene.shapes[0] (h).heightfield.cells");
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "h", "material": "m", "heightfield": {}})")), "heightfield.height");
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "h", "material": "m", "heightfield": {"height": {"pattern": "hills"}}})")),
+                  "unknown pattern 'hills'");
+}
+
+TEST(SceneBuilder, BumpsSpanTheirTwoColours) {
+  ProceduralSpec spec;
+  spec.pattern = "bumps";
+  spec.width = spec.height = 48;
+  spec.seed = 5;
+  spec.a = Rgb(1.f);
+  spec.b = Rgb(0.f);
+  const Image im = makeProceduralImage(spec);
+  float lo = 1e9f, hi = -1e9f;
+  for (float v : im.data()) lo = std::min(lo, v), hi = std::max(hi, v);
+  EXPECT_NEAR(lo, 0.f, 1e-6f);
+  EXPECT_NEAR(hi, 1.f, 1e-6f);
+  spec.seed = 6;  // another seed, other hills
+  EXPECT_NE(makeProceduralImage(spec).data(), im.data());
 }
 
 TEST(SceneBuilder, ReferencesAndValuesAreChecked) {
