@@ -342,6 +342,15 @@ class Importer {
     }
     return p;
   }
+  // An emitter's share of light samples changes the noise, not the image, unless it is 0 on a
+  // delta light, which no other strategy reaches: that light is then missing from Mitsuba's image.
+  void samplingWeight(Props& p, bool deltaLight) {
+    if (!p.named.count("sampling_weight")) return;
+    const double w = floatProp(p, "sampling_weight", 1.0);
+    if (!(w >= 0)) fail(p.named["sampling_weight"], "sampling_weight must be >= 0");
+    if (w == 0 && deltaLight) fail(p.named["sampling_weight"], "sampling_weight 0 removes this light from Mitsuba's image; leave the light out instead");
+    warn(p.named["sampling_weight"], "sampling_weight: ignored (invr chooses lights by power; the noise differs, not the image)");
+  }
   // Properties left over after a plugin took what it supports: harmless ones warn, others fail.
   void finishProps(Props& p, const std::set<std::string>& harmless = {}) {
     for (const auto& [nm, c] : p.named) {
@@ -499,7 +508,7 @@ class Importer {
     if (filter != "bilinear") fail(p.named["filter_type"], "filter_type '" + filter + "': invr looks textures up bilinearly");
     std::string wrap = stringProp(p, "wrap_mode", "repeat");
     if (wrap != "repeat") fail(p.named["wrap_mode"], "wrap_mode '" + wrap + "': invr repeats textures");
-    finishProps(p, {"format"});
+    finishProps(p, {"format", "accel"});  // storage and the lookup path, not the values
     for (auto c : p.unnamed) fail(c, "unexpected element inside a bitmap");
   }
 
@@ -736,7 +745,7 @@ class Importer {
         else fail(c, "unexpected element inside twosided");
       }
       if (inner.size() != 1) fail(n, "twosided with " + std::to_string(inner.size()) + " bsdfs: invr supports exactly one (the same on both sides)");
-      finishProps(p);
+      finishProps(p, {"allow_transmission"});  // only a check in Mitsuba, never a change to what a loading scene renders
       std::string id = inner[0].attribute("id").value();
       if (!id.empty()) {
         if (resolving_.count(id)) fail(inner[0], "a cycle of references through \"" + id + "\"");
@@ -921,11 +930,16 @@ class Importer {
       pugi::xml_node rad = ep.get("radiance");  // Mitsuba's default: 1
       if (rad && (std::string(rad.name()) == "texture" || std::string(rad.name()) == "ref")) fail(rad, "textured emission is not supported");
       *l.mutable_area()->mutable_radiance() = toRgb(rad ? emission(rad, "'radiance'") : D3{1, 1, 1});
+      samplingWeight(ep, false);
       finishProps(ep);
       for (auto x : ep.unnamed) fail(x, "unexpected element inside an area emitter");
       *out_.job.mutable_scene()->add_lights() = l;
     }
-    finishProps(p);
+    // How often projective integrators sample this shape's silhouette: gradients' noise only. A
+    // planar or box face is flat whatever face_normals says.
+    std::set<std::string> harmless{"silhouette_sampling_weight"};
+    if (type == "rectangle" || type == "cube") harmless.insert("face_normals");
+    finishProps(p, harmless);
   }
 
   void emitter(pugi::xml_node n) {
@@ -984,7 +998,10 @@ class Importer {
     } else {
       fail(n, "emitter type '" + type + "' is not supported (area, point, spot, envmap, constant)");
     }
-    finishProps(p);
+    samplingWeight(p, type == "point" || type == "spot");
+    // mis_compensation reshapes the envmap's sampling distribution only; a constant emitter is the
+    // same in every direction, so turning it changes nothing.
+    finishProps(p, type == "envmap" ? std::set<std::string>{"mis_compensation"} : type == "constant" ? std::set<std::string>{"to_world"} : std::set<std::string>{});
     for (auto c : p.unnamed) fail(c, "unexpected element inside an emitter");
     *out_.job.mutable_scene()->add_lights() = l;
   }
@@ -1110,7 +1127,8 @@ class Importer {
            "clip planes are not applied: invr's camera rays start at the eye and are unbounded, so geometry nearer than near_clip "
            "or farther than far_clip stays visible");
     *sc->add_views() = cam;
-    finishProps(p);
+    // A pinhole camera has no focus, and a static scene looks the same whatever the shutter times.
+    finishProps(p, {"focus_distance", "shutter_open", "shutter_close"});
     ++sensors_;
   }
   void integrator(pugi::xml_node n) {
@@ -1156,16 +1174,17 @@ class Importer {
       out_.job.mutable_render()->set_russian_roulette_depth(std::max(1, rr - 1));
     } else if (type == "direct") {
       depth = 1;
-      intProp(p, "emitter_samples", 1);
-      intProp(p, "bsdf_samples", 1);
-      if (p.used.count("emitter_samples") || p.used.count("bsdf_samples"))
-        warn(n, "emitter_samples / bsdf_samples: invr takes one light and one BSDF sample per vertex (the noise differs, not the image)");
+      const int shading = intProp(p, "shading_samples", 1);
+      if (intProp(p, "emitter_samples", shading) == 0 || intProp(p, "bsdf_samples", shading) == 0)
+        fail(n, "emitter_samples or bsdf_samples = 0 leaves light out of Mitsuba's image (delta lights, or what only BSDF sampling reaches); invr's cannot");
+      if (p.used.count("emitter_samples") || p.used.count("bsdf_samples") || p.used.count("shading_samples"))
+        warn(n, "shading_samples / emitter_samples / bsdf_samples: invr takes one light and one BSDF sample per vertex (the noise differs, not the image)");
     } else {
       fail(n, "integrator type '" + type + "' is not supported (path, prb, prb_basic, prb_projective, direct, direct_projective)");
     }
     if (boolProp(p, "hide_emitters", false)) fail(p.named["hide_emitters"], "hide_emitters=true is not supported");
     out_.job.mutable_render()->set_max_depth(depth);
-    finishProps(p);
+    finishProps(p, {"timeout", "block_size", "samples_per_pass"});  // scheduling, not the image
     for (auto c : p.unnamed) fail(c, "unexpected element inside an integrator");
   }
   static constexpr int kUnlimitedDepth = 64;

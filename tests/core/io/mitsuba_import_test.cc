@@ -370,6 +370,62 @@ TEST(MitsubaImport, IgnoredHarmlessPropertiesAreWarnedAbout) {
   EXPECT_MENTIONS(all, "box filter");
 }
 
+// Properties Mitsuba 3 reads that cannot change what it renders (sampling, scheduling, a pinhole's
+// focus, shutter times of a static scene) are warned about and ignored, never refused: the scene
+// with them renders exactly as the scene without them.
+TEST(MitsubaImport, PropertiesThatCannotChangeTheImageAreWarnedNeverRefused) {
+  Image env(8, 4, 3);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x) env.setRgb(x, y, Rgb(0.1f * float(x + 1), 0.5f, 0.2f));
+  writeImage(tmpDir() / "harmless_env.exr", env);
+  writeImage(tmpDir() / "harmless_tex.png", env);
+  auto scene = [](bool extras) {
+    auto x = [&](const std::string& s) { return extras ? s : std::string(); };
+    return R"(<scene version="3.0.0">
+      <integrator type="direct">)" + x(R"(<integer name="shading_samples" value="4"/><float name="timeout" value="100"/><integer name="block_size" value="16"/>)") + R"(</integrator>
+      <sensor type="perspective"><float name="fov" value="45"/>)" + x(R"(<float name="focus_distance" value="3"/><float name="shutter_open" value="0"/><float name="shutter_close" value="0.5"/>)") + R"(
+        <transform name="to_world"><lookat origin="0, 0.5, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="16"/><rfilter type="box"/></film></sensor>
+      <bsdf type="roughconductor" id="metal"><string name="material" value="Al"/><float name="alpha" value="0.3"/><string name="distribution" value="ggx"/>)" + x(R"(<boolean name="sample_visible" value="false"/>)") + R"(</bsdf>
+      <bsdf type="twosided" id="wall">)" + x(R"(<boolean name="allow_transmission" value="false"/>)") + R"(<bsdf type="roughplastic"><float name="alpha" value="0.2"/><string name="distribution" value="ggx"/>)" + x(R"(<boolean name="sample_visible" value="true"/>)") + R"(
+        <texture type="bitmap" name="diffuse_reflectance"><string name="filename" value="harmless_tex.png"/>)" + x(R"(<boolean name="accel" value="false"/>)") + R"(</texture></bsdf></bsdf>
+      <shape type="rectangle">)" + x(R"(<boolean name="face_normals" value="true"/><float name="silhouette_sampling_weight" value="2"/>)") + R"(<ref id="wall"/>
+        <transform name="to_world"><scale value="2"/><translate z="-1"/></transform></shape>
+      <shape type="sphere"><float name="radius" value="0.5"/><ref id="metal"/>)" + x(R"(<float name="silhouette_sampling_weight" value="0.5"/>)") + R"(</shape>
+      <emitter type="point"><point name="position" x="1" y="1" z="1"/><rgb name="intensity" value="3"/>)" + x(R"(<float name="sampling_weight" value="2"/>)") + R"(</emitter>
+      <emitter type="envmap"><string name="filename" value="harmless_env.exr"/>)" + x(R"(<boolean name="mis_compensation" value="true"/>)") + R"(</emitter>
+      <emitter type="constant"><rgb name="radiance" value="0.1"/>)" + x(R"(<transform name="to_world"><rotate y="1" angle="30"/></transform>)") + R"(</emitter>
+    </scene>)";
+  };
+  MitsubaImport with = importText(scene(true)), without = importText(scene(false));
+  std::string all;
+  for (const auto& w : with.warnings) all += w + "\n";
+  // (sample_visible is read and dropped silently: a sampling choice of the microfacet BSDFs.)
+  for (const char* name : {"shading_samples", "timeout", "block_size", "focus_distance", "shutter_open", "shutter_close",
+                           "allow_transmission", "accel", "face_normals", "silhouette_sampling_weight", "sampling_weight", "mis_compensation",
+                           "to_world"})
+    EXPECT_MENTIONS(all, name);
+  v1::JobSpec a = with.job, b = without.job;
+  a.mutable_render()->set_spp(2);
+  b.mutable_render()->set_spp(2);
+  const Image ia = renderJob(a), ib = renderJob(b);
+  ASSERT_EQ(ia.data().size(), ib.data().size());
+  double sum = 0;
+  for (size_t i = 0; i < ia.data().size(); ++i) {
+    EXPECT_EQ(ia.data()[i], ib.data()[i]) << "value " << i;
+    sum += ia.data()[i];
+  }
+  EXPECT_GT(sum, 0.0);
+  // Where such a property would change Mitsuba's image, it is refused, saying why.
+  const std::string head = R"(<scene version="3.0.0"><sensor type="perspective"><float name="fov" value="45"/></sensor>)";
+  EXPECT_MENTIONS(errorOf(head + R"(<emitter type="point"><float name="sampling_weight" value="0"/></emitter></scene>)"),
+                  "sampling_weight 0 removes this light");
+  EXPECT_MENTIONS(errorOf(head + R"(<emitter type="constant"/><integrator type="direct"><integer name="bsdf_samples" value="0"/></integrator></scene>)"),
+                  "bsdf_samples = 0");
+  EXPECT_MENTIONS(errorOf(head + R"(<emitter type="constant"/><shape type="sphere"><boolean name="face_normals" value="true"/></shape></scene>)"),
+                  "property 'face_normals' is not supported");
+}
+
 // The projective integrators Mitsuba's shape scenes name: direct_projective is direct
 // illumination, prb_projective a path tracer; their boundary sampling options are warned about and
 // ignored (invr's boundary terms do that work). Several sensors become several views.
