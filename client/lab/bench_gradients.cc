@@ -13,6 +13,7 @@
 #include "core/diff/pixel_sampler.h"
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
+#include "core/scene/scene_builder.h"
 #include "core/optim/equal_time.h"
 #include "core/optim/optimization_loop.h"
 #include "core/error.h"
@@ -556,6 +557,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
 struct VertexStepArgs {
   std::string scene = "relief";
   std::string shape;  // a shape of the scene to move instead of the job's vertex parameter's
+  bool smooth = false;  // that shape smooth-shaded (vertex normals recomputed as it deforms)
   int steps = 12;
   std::vector<std::string> methods{"pt", "ris", "restir"};
   bool json = false;
@@ -578,6 +580,20 @@ BenchReport benchVertexStep(const VertexStepArgs& a) {
     ps->set_large_steps_lambda(10);
     zoo.mutable_optimization()->set_optimizer("adam_uniform");
   }
+  if (a.smooth) {
+    if (a.shape.empty()) throw InputError("--smooth needs --shape");
+    // The zoo scene inline, with the shape's vertex normals (the zoo flat-shades meshes that move).
+    v1::Scene scene = jobSceneSpec(zoo);
+    bool found = false;
+    for (auto& sh : *scene.mutable_shapes())
+      if (sh.name() == a.shape) {
+        sh.set_face_normals(false);
+        sh.set_smooth_normals(true);
+        found = true;
+      }
+    if (!found) throw InputError("--shape " + a.shape + ": no such shape in zoo scene " + a.scene);
+    *zoo.mutable_scene() = scene;
+  }
   for (const auto& ps : zoo.optimization().parameters())
     if (ps.name().size() > 9 && ps.name().compare(ps.name().size() - 9, 9, "/vertices") == 0) vertexSpec = &ps;
   if (!vertexSpec) throw InputError("--scene " + a.scene + ": its job has no vertex parameter (use octagon or relief, or name a shape with --shape)");
@@ -599,6 +615,7 @@ BenchReport benchVertexStep(const VertexStepArgs& a) {
   for (Run& r : runs) r.setup.targets = renderTargets(r.setup.problem);
   BenchReport rep("vertex-step");
   rep.text("scene", a.scene);
+  rep.text("shading", runs[0].setup.problem.scene->meshes[size_t(runs[0].setup.problem.params.slots()[0].shape)].normals.empty() ? "flat" : "smooth");
   rep.text("parameters", vertexSpec->name() + " (" + std::to_string(runs[0].setup.problem.params.size()) + " values) against " + shapePath +
                              "/translation");
   rep.number("triangles", double(runs[0].setup.problem.scene->meshes.empty() ? 0 : [&] {
@@ -701,6 +718,7 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   auto* vs = bench.add_subcommand("vertex-step", "A whole optimisation step with a mesh's vertices as the parameter against its rigid translation, same mesh");
   vs->add_option("--scene", va->scene, "zoo scene whose job has a vertex parameter (octagon or relief), or any with --shape")->capture_default_str();
   vs->add_option("--shape", va->shape, "move this shape of the scene instead (e.g. --scene knot --shape knot; Large Steps lambda 10, adam_uniform)");
+  vs->add_flag("--smooth", va->smooth, "with --shape: that shape smooth-shaded (angle-weighted vertex normals, recomputed as it deforms)");
   vs->add_option("--steps", va->steps, "timed steps of each (after one untimed)")->capture_default_str();
   vs->add_option("--methods", va->methods, "pt, ris, restir")->delimiter(',')->check(CLI::IsMember({"pt", "ris", "restir"}))->capture_default_str();
   vs->add_flag("--json", va->json, "print one JSON object");

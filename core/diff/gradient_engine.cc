@@ -41,7 +41,7 @@ bool visibleFromCamera(const Scene& scene, const Camera& cam, Vec3 p, Vec3 n) {
 
 GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& params, std::vector<Image> targets, GradientOptions options)
     : scene_(scene), params_(params), targets_(std::move(targets)), opt_(options),
-      scratch_(std::make_unique<GradientScratchPool>(params.size())) {
+      scratch_(std::make_unique<GradientScratchPool>(params.adjointSize())) {
   // User errors were refused when the job was built (parseGradientOptions, validateGradientJob).
   INVR_INVARIANT(scene.accelerated(), "GradientEngine: the scene was built for validation only (no BVH)");
   INVR_INVARIANT(opt_.sppPrimal > 0 && opt_.sppGradient > 0 && opt_.restir.candidates > 0 && opt_.radiusPixels > 0.f,
@@ -63,7 +63,11 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
       // where faces turn from a light do cut the light off while the interpolated normal still
       // faces it: on the smooth sphere of SmoothSphereMovingSideways, sampling every edge as a
       // crease added more O(eps) bias, +1.6 %, than that jump's share, -0.3 % +- 0.6 % without.)
-      if (params.deforms(m)) topology_.back().markEveryEdgeACrease();
+      // Smooth meshes that deform recompute welded vertex normals: no edge is a crease.
+      if (params.deforms(m)) {
+        if (scene.meshes[m].normals.empty()) topology_.back().markEveryEdgeACrease();
+        else topology_.back().markNoEdgeACrease();
+      }
     }
 }
 
@@ -110,7 +114,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
       if (size_t(v) >= targets_.size() || targets_[size_t(v)].empty())
         throw InputError("gradient request: no target image for view " + std::to_string(v));
   Step s(req, session);
-  s.out.gradient.assign(params_.size(), 0.0);
+  s.out.gradient.assign(params_.adjointSize(), 0.0);
   s.pixels = size_t(scene_.width) * size_t(scene_.height);
   s.restir = opt_.method == GradientMethod::Restir;
   s.restirDerivative = s.restir && !opt_.forwardOnly;
@@ -121,6 +125,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   derivativePass(s);
   boundaryPasses(s);
   variancePass(s);
+  params_.foldNormalAdjoints(scene_, s.out.gradient, opt_.vertexNormalTerm);
   storeReservoirs(s);
   v1::GradientStats& st = s.out.stats;
   setRayCounts(st, s.rays);

@@ -131,13 +131,6 @@ void validateGradientJob(const Scene& scene, const ParameterRegistry& params, co
     if (mat.kind != BsdfKind::Diffuse || !mat.albedo.isConstant())
       fail("parameters", what + "shape '" + scene.meshNames[m] + "' has material '" + mat.name +
                              "': the interior shape derivative covers diffuse, untextured materials only");
-    // Rigidly moving smooth meshes shade by their geometric side (Bsdf::geometricSide); vertex
-    // parameters would also need the vertex normals recomputed from the positions and
-    // differentiated through, which they are not yet.
-    if (params.deforms(m) && !scene.meshes[m].normals.empty())
-      fail("parameters", what + "shape '" + scene.meshNames[m] +
-                             "' has interpolated vertex normals: its vertices as a parameter need a flat-shaded mesh for now (the "
-                             "shape's face_normals: true); pose parameters move smooth meshes");
   }
   if (!o.boundary.allowUnsampled) {
     const std::vector<std::string> unsampled = unsampledDiscontinuities(scene, params);

@@ -45,6 +45,10 @@ struct GradientOptions {
   std::vector<std::vector<float>> lossMasks;
   VarianceOptions variance;
   BoundaryOptions boundary;  // used when shape parameters are optimised
+  // Smooth meshes under vertex parameters: the interior term through their recomputed vertex
+  // normals (ParameterRegistry::foldNormalAdjoints). Always on in jobs; tests turn it off to
+  // measure its share of a derivative.
+  bool vertexNormalTerm = true;
 };
 
 // Every field of optimization that sets the gradient options (the loss masks excepted: they are

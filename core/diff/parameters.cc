@@ -369,6 +369,13 @@ const ParameterSlot& ParameterRegistry::addVertices(const Scene& scene, const st
   slot.learningRate = 1e-3f * 2.f * scene.radius;
   applyOptions(slot, o);
   field.offset = slot.offset;
+  field.mesh = mesh;
+  // Smooth meshes keep their shading: their vertex normals are recomputed from the positions
+  // after every update (Scene::deformMesh), and differentiated through.
+  if (!m.normals.empty()) {
+    field.normalOffset = int64_t(normalAdjoints_);
+    normalAdjoints_ += 3 * m.positions.size();
+  }
   if (vertexField_.size() < scene.meshes.size()) vertexField_.resize(scene.meshes.size(), -1);
   vertexField_[mesh] = int(vertexFields_.size());
   vertexFields_.push_back(std::move(field));
@@ -389,6 +396,7 @@ TriangleMesh ParameterRegistry::vertexMesh(const Scene& scene, const ParameterSl
     if (a == b || b == c || a == c) continue;
     out.indices.insert(out.indices.end(), {a, b, c});
   }
+  if (!m.normals.empty()) computeSmoothNormals(out);  // smooth meshes written smooth
   return out;
 }
 
@@ -411,7 +419,22 @@ void ParameterRegistry::addHitGradient(const Scene& scene, const SurfaceHit& hit
   // p = b0 a + b1 b + b2 c: dp/dv_i = b_i.
   const float b[3] = {1.f - hit.b1 - hit.b2, hit.b1, hit.b2};
   Vec3 gv[3] = {dLdp * b[0], dLdp * b[1], dLdp * b[2]};
-  if (normal) {
+  if (normal && f.normalOffset >= 0) {
+    // ns = ±n / |n| with n = sum b_i N_i, the vertex normals interpolated: dL/dN_i = b_i q with
+    // q = ±(I - ns ns^T) dLdn / |n|. Those go to the hidden vertex-normal entries, folded into the
+    // positions once per evaluation (foldNormalAdjoints).
+    const Vec3 n = m.normals[idx[0]] * b[0] + m.normals[idx[1]] * b[1] + m.normals[idx[2]] * b[2];
+    const float len = length(n);
+    if (len > 0.f) {
+      const float sign = dot(n, hit.ns) < 0.f ? -1.f : 1.f;
+      const Vec3 q = (dLdn - hit.ns * dot(hit.ns, dLdn)) * (sign / len);
+      for (int i = 0; i < 3; ++i) {
+        const uint32_t base = uint32_t(size_ + size_t(f.normalOffset) + 3 * size_t(idx[i]));
+        for (uint32_t c = 0; c < 3; ++c)
+          if (q[int(c)] != 0.f && b[i] != 0.f) grad.add(base + c, q[int(c)] * b[i]);
+      }
+    }
+  } else if (normal) {
     // ns = ng = N / |N|, N = (b - a) x (c - a) (flat shading): dN for a move d of vertex i is
     // d x (v_{i+1} - v_{i+2}), so dLoss/dv_i = (v_{i+1} - v_{i+2}) x q with q = (I - n n^T) dLdn / |N|.
     const Vec3 p[3] = {m.positions[idx[0]], m.positions[idx[1]], m.positions[idx[2]]};
@@ -424,6 +447,23 @@ void ParameterRegistry::addHitGradient(const Scene& scene, const SurfaceHit& hit
     }
   }
   for (int i = 0; i < 3; ++i) add(idx[i], gv[i]);
+}
+
+void ParameterRegistry::foldNormalAdjoints(const Scene& scene, std::vector<double>& gradient, bool normals) const {
+  if (normalAdjoints_ == 0) return;
+  INVR_INVARIANT(gradient.size() == adjointSize(), "the gradient holds the vertex-normal entries");
+  if (normals)
+    for (const VertexField& f : vertexFields_) {
+      if (f.normalOffset < 0) continue;
+      const TriangleMesh& m = scene.meshes[f.mesh];
+      const double* dn = gradient.data() + size_ + size_t(f.normalOffset);
+      std::vector<Vec3> dNormals(m.positions.size()), dPositions;
+      for (size_t v = 0; v < dNormals.size(); ++v) dNormals[v] = Vec3(float(dn[3 * v]), float(dn[3 * v + 1]), float(dn[3 * v + 2]));
+      computeSmoothNormalsAdjoint(m, dNormals, dPositions, &f.weld);
+      for (size_t v = 0; v < dPositions.size(); ++v)
+        for (int c = 0; c < 3; ++c) gradient[f.offset + 3 * size_t(f.weld[v]) + size_t(c)] += double(dPositions[v][c]);
+    }
+  gradient.resize(size_);
 }
 
 void ParameterRegistry::addEdgeGradient(const Scene& scene, uint32_t mesh, uint32_t v0, uint32_t v1, float t, Vec3 p, Vec3 dLdp,
@@ -513,7 +553,7 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
           const float* xyz = in + 3 * size_t(f.weld[v]);
           positions[v] = Vec3(xyz[0], xyz[1], xyz[2]);
         }
-        scene.deformMesh(uint32_t(s.shape), positions);
+        scene.deformMesh(uint32_t(s.shape), positions, &f.weld);
         continue;
       }
       case ParamKind::ShapeTranslation:

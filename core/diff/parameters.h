@@ -71,6 +71,11 @@ class ParameterRegistry {
   const ParameterSlot& add(const Scene& scene, const std::string& name, const ParameterOptions& options = {});
 
   size_t size() const { return size_; }
+  // The length of the gradient vector the estimators accumulate into: size(), then dL/d each
+  // vertex normal of the smooth meshes whose vertices are parameters (3 per mesh vertex), which
+  // foldNormalAdjoints takes to the vertices once the passes are summed (a per-sample scatter
+  // over each hit vertex's ring of triangles would cost more than the rest of the sample).
+  size_t adjointSize() const { return size_ + normalAdjoints_; }
   const std::vector<ParameterSlot>& slots() const { return slots_; }
   const ParameterSlot* find(const std::string& name) const;
 
@@ -110,7 +115,8 @@ class ParameterRegistry {
     return vertexFields_[size_t(vertexField_[size_t(slot.shape)])].edges;
   }
   // A vertex parameter's mesh at `values` (the slot's part of theta): one vertex per parameter
-  // vertex, the shape's triangles on them (triangles welding collapsed are dropped), no normals.
+  // vertex, the shape's triangles on them (triangles welding collapsed are dropped); normals
+  // (computeSmoothNormals over the welded vertices) when the shape is smooth-shaded.
   TriangleMesh vertexMesh(const Scene& scene, const ParameterSlot& slot, const float* values) const;
   // Whether the mesh's vertices are a parameter (shapes/<s>/vertices).
   bool deforms(uint32_t mesh) const { return mesh < vertexField_.size() && vertexField_[mesh] >= 0; }
@@ -120,6 +126,10 @@ class ParameterRegistry {
   void addHitGradient(const Scene& scene, const SurfaceHit& hit, Vec3 dLdp, Vec3 dLdn, PathGradient& grad) const;
   // A point p = lerp(v0, v1, t) of the edge between mesh vertices v0 and v1:
   void addEdgeGradient(const Scene& scene, uint32_t mesh, uint32_t v0, uint32_t v1, float t, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
+  // Takes the vertex-normal entries of `gradient` (adjointSize() long; scene at the parameters the
+  // gradient was taken at) to the vertex positions through computeSmoothNormalsAdjoint, and cuts
+  // it to size(). With `normals` false they are dropped instead (tests measure the term's share).
+  void foldNormalAdjoints(const Scene& scene, std::vector<double>& gradient, bool normals = true) const;
 
  private:
   const ParameterSlot& addShape(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
@@ -147,7 +157,12 @@ class ParameterRegistry {
     std::vector<uint32_t> weld;            // mesh vertex -> parameter vertex
     std::vector<uint32_t> representative;  // parameter vertex -> its first mesh vertex
     std::vector<std::pair<uint32_t, uint32_t>> edges;  // between parameter vertices
+    // Smooth meshes: where dL/d(vertex normal) of mesh vertex v starts, size_ + normalOffset + 3v;
+    // -1 for flat meshes.
+    int64_t normalOffset = -1;
+    uint32_t mesh = 0;
   };
+  size_t normalAdjoints_ = 0;
   std::vector<int> vertexField_;
   std::vector<VertexField> vertexFields_;
   void markMoving(const Scene& scene, uint32_t mesh);

@@ -125,6 +125,11 @@ void EdgeTopology::markEveryEdgeACrease() {
   }
 }
 
+void EdgeTopology::markNoEdgeACrease() {
+  creases_ = 0;
+  for (MeshEdge& e : edges_) e.crease = false;
+}
+
 bool EdgeTopology::silhouetteFrom(const MeshEdge& e, const TriangleMesh& mesh, const std::vector<Vec3>& faceNormals, Vec3 o) {
   return silhouetteTowards(e, faceNormals, o - mesh.positions[e.v0]);
 }

@@ -36,6 +36,10 @@ class EdgeTopology {
   // For a mesh that deforms (vertex parameters): any two faces may turn apart, so every edge with
   // two faces is a crease, whether or not its faces meet at an angle now.
   void markEveryEdgeACrease();
+  // For a smooth mesh that deforms: its vertex normals are recomputed over welded vertices
+  // (ParameterRegistry), so shading is continuous across every edge with two faces, whatever
+  // normals it was loaded with; only silhouettes (per viewpoint) and boundaries remain.
+  void markNoEdgeACrease();
   size_t boundaryEdges() const { return boundary_; }
   size_t creaseEdges() const { return creases_; }
   size_t nonManifoldEdges() const { return nonManifold_; }

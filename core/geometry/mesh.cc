@@ -26,7 +26,11 @@ void TriangleMesh::transform(const Affine& xf) {
   }
 }
 
-void computeSmoothNormals(TriangleMesh& m) {
+namespace {
+
+// The angle-weighted sum of each vertex's triangle normals, before normalisation (shared by
+// computeSmoothNormals and its adjoint so that the two cannot drift apart).
+std::vector<Vec3> angleWeightedNormalSums(const TriangleMesh& m) {
   std::vector<Vec3> n(m.positions.size(), Vec3(0.f));
   for (size_t t = 0; t < m.triangleCount(); ++t) {
     const uint32_t* i = &m.indices[3 * t];
@@ -42,11 +46,83 @@ void computeSmoothNormals(TriangleMesh& m) {
       n[i[k]] += fn * angle;
     }
   }
+  return n;
+}
+
+}  // namespace
+
+void computeSmoothNormals(TriangleMesh& m, const std::vector<uint32_t>* weld) {
+  std::vector<Vec3> n = angleWeightedNormalSums(m);
+  if (weld) {  // each welded vertex's copies share the sum over all their triangles
+    std::vector<Vec3> welded(n.size(), Vec3(0.f));
+    for (size_t v = 0; v < n.size(); ++v) welded[(*weld)[v]] += n[v];
+    for (size_t v = 0; v < n.size(); ++v) n[v] = welded[(*weld)[v]];
+  }
   for (size_t v = 0; v < n.size(); ++v) {
     // A vertex no triangle gives a direction (isolated or only degenerate) keeps +z: unused.
     n[v] = lengthSquared(n[v]) > 0.f ? normalize(n[v]) : Vec3(0, 0, 1);
   }
   m.normals = std::move(n);
+}
+
+void computeSmoothNormalsAdjoint(const TriangleMesh& m, const std::vector<Vec3>& dNormals, std::vector<Vec3>& dPositions,
+                                 const std::vector<uint32_t>* weld) {
+  std::vector<Vec3> sums = angleWeightedNormalSums(m), dN = dNormals;
+  if (weld) {  // the copies' sum is one normal: its adjoint is the sum of theirs
+    std::vector<Vec3> welded(sums.size(), Vec3(0.f)), weldedD(sums.size(), Vec3(0.f));
+    for (size_t v = 0; v < sums.size(); ++v) {
+      welded[(*weld)[v]] += sums[v];
+      weldedD[(*weld)[v]] += dNormals[v];
+    }
+    for (size_t v = 0; v < sums.size(); ++v) {
+      sums[v] = welded[(*weld)[v]];
+      dN[v] = weldedD[(*weld)[v]];
+    }
+  }
+  // n_v = A_v / |A_v|: dA_v = (I - n n^T) dn_v / |A_v| (the +z of an empty sum is constant). Welded,
+  // each copy's own sum enters A_w once, so its adjoint is A_w's.
+  std::vector<Vec3> dSums(sums.size(), Vec3(0.f));
+  for (size_t v = 0; v < sums.size(); ++v) {
+    if (!(lengthSquared(sums[v]) > 0.f)) continue;
+    const float len = length(sums[v]);
+    const Vec3 n = sums[v] / len;
+    dSums[v] = (dN[v] - n * dot(n, dN[v])) / len;
+  }
+  dPositions.assign(m.positions.size(), Vec3(0.f));
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    const uint32_t* i = &m.indices[3 * t];
+    const Vec3 p[3] = {m.positions[i[0]], m.positions[i[1]], m.positions[i[2]]};
+    const Vec3 e1 = p[1] - p[0], e2 = p[2] - p[0], F = cross(e1, e2);
+    if (!(lengthSquared(F) > 0.f)) continue;
+    const float lenF = length(F);
+    const Vec3 fn = F / lenF;
+    Vec3 dFn(0.f);
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+      const float la = length(a), lb = length(b);
+      if (!(la > 0.f && lb > 0.f)) continue;
+      const Vec3& dA = dSums[i[k]];
+      const float angle = std::acos(std::clamp(dot(a, b) / (la * lb), -1.f, 1.f));
+      dFn += dA * angle;
+      // The corner's angle: d angle / da = -(unit part of b across a) / |a|, and the same for b.
+      const float dAngle = dot(dA, fn);
+      const Vec3 ah = a / la, bh = b / lb;
+      const Vec3 acrossA = bh - ah * dot(ah, bh), acrossB = ah - bh * dot(ah, bh);
+      const float sA = length(acrossA), sB = length(acrossB);
+      if (!(sA > 0.f && sB > 0.f) || dAngle == 0.f) continue;  // a straight corner: the clamp holds the angle
+      const Vec3 ga = acrossA * (-dAngle / (la * sA)), gb = acrossB * (-dAngle / (lb * sB));
+      dPositions[i[(k + 1) % 3]] += ga;
+      dPositions[i[(k + 2) % 3]] += gb;
+      dPositions[i[k]] -= ga + gb;
+    }
+    // fn = F / |F| with F = e1 x e2: dF = (I - fn fn^T) dfn / |F|; F's adjoint to e1 is e2 x dF,
+    // to e2 is dF x e1 (the scalar triple product turned).
+    const Vec3 dF = (dFn - fn * dot(fn, dFn)) / lenF;
+    const Vec3 de1 = cross(e2, dF), de2 = cross(dF, e1);
+    dPositions[i[1]] += de1;
+    dPositions[i[2]] += de2;
+    dPositions[i[0]] -= de1 + de2;
+  }
 }
 
 void TriangleMesh::flipWinding(bool flipNormals) {

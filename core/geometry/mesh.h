@@ -48,7 +48,15 @@ TriangleMesh makeHeightfield(int cells, const std::function<float(float u, float
 size_t validateMesh(TriangleMesh& mesh, const std::string& what);
 
 // Vertex normals for a mesh that has none: each vertex's triangle normals weighted by the
-// triangle's angle at the vertex (independent of how finely the surface is tessellated).
-void computeSmoothNormals(TriangleMesh& mesh);
+// triangle's angle at the vertex (independent of how finely the surface is tessellated). With
+// `weld` (mesh vertex -> welded vertex), copies of a vertex at seams share one normal, summed over
+// all their triangles.
+void computeSmoothNormals(TriangleMesh& mesh, const std::vector<uint32_t>* weld = nullptr);
+// Its adjoint: dL/dpositions (one per vertex, overwritten) from dL/dnormals, dL/d of each unit
+// vertex normal that computeSmoothNormals gives at the mesh's positions (with the same weld).
+// Smooth meshes under vertex parameters recompute their normals after every update; this takes
+// their derivatives back to the vertices.
+void computeSmoothNormalsAdjoint(const TriangleMesh& mesh, const std::vector<Vec3>& dNormals, std::vector<Vec3>& dPositions,
+                                 const std::vector<uint32_t>* weld = nullptr);
 
 }  // namespace invr

@@ -24,6 +24,11 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   // Deformed meshes (vertex parameters) under ReSTIR keep, per geometry a kept reservoir was
   // created in (last step's and this one's), their vertices, face normals and a BVH over them.
   if (g.method == GradientMethod::Restir && !g.boundary.multiViewShortcut) w.geometry += 2 * deformedTris * (3 * 12 + 12) * 2.5;
+  // Smooth deformed meshes keep their vertex normals with each such geometry, ~one vertex per two triangles.
+  double smoothDeformedTris = 0;
+  for (uint32_t m : p.params.movingMeshes())
+    if (p.params.deforms(m) && !s.meshes[m].normals.empty()) smoothDeformedTris += double(s.meshes[m].triangleCount());
+  if (g.method == GradientMethod::Restir && !g.boundary.multiViewShortcut) w.geometry += 2 * smoothDeformedTris * 0.5 * 12;
   double texels = 0;
   for (const auto& sl : p.params.slots()) texels += sl.width ? double(sl.size) * 4 : 0;
   w.textures = texels * 3;
@@ -31,7 +36,9 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   if (g.method == GradientMethod::Restir)
     w.reservoirs = double(maxShard) * pixels * double(g.sppPrimal + (g.forwardOnly ? 0 : g.sppGradient)) *
                    double(sizeof(StoredReservoir) + 24) * 2;  // current and previous chain, kd-tree
-  w.gradients = double(p.params.size()) * 8 * double(threads + 2);
+  // Dense accumulators per thread and per evaluation, with the smooth meshes' vertex-normal
+  // entries (ParameterRegistry::adjointSize); a thread's scratch also keeps a touched byte each.
+  w.gradients = double(p.params.adjointSize()) * 9 * double(threads + 2);
   // Per view: dL/dV, the pass's mean and second moment, the variance map (RGB floats each); per
   // thread: one walk's decision records (variance_visitor.h), at most a few hundred bytes per vertex.
   if (g.variance.enabled) w.variance = double(maxShard) * pixels * 12 * 4 + double(threads) * double(g.maxDepth + 1) * 512;

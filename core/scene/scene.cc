@@ -134,7 +134,7 @@ void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
   if (moved) ++geometryVersion_;
 }
 
-void Scene::deformMesh(uint32_t m, const std::vector<Vec3>& positions) {
+void Scene::deformMesh(uint32_t m, const std::vector<Vec3>& positions, const std::vector<uint32_t>* normalWeld) {
   TriangleMesh& mesh = meshes.at(m);
   if (positions.size() != mesh.positions.size())
     throw std::invalid_argument("deformMesh: " + std::to_string(positions.size()) + " positions for a mesh of " +
@@ -142,6 +142,7 @@ void Scene::deformMesh(uint32_t m, const std::vector<Vec3>& positions) {
   if (!motion.deforming_[m]) {
     if (motion.moving_[m]) throw std::logic_error("deformMesh: mesh " + meshNames[m] + " already moves rigidly");
     motion.moving_[m] = motion.deforming_[m] = 1;
+    if (!mesh.normals.empty()) materials[size_t(meshMaterial[m])].geometricSide = true;  // as applyShapeMotion
     motion.movingList_.insert(std::lower_bound(motion.movingList_.begin(), motion.movingList_.end(), m), m);
     dynamicMeshes_[m] = true;
     if (accelerated_) accel.build(meshes, dynamicMeshes_);  // refit-friendly from now on
@@ -149,6 +150,9 @@ void Scene::deformMesh(uint32_t m, const std::vector<Vec3>& positions) {
     return;
   }
   mesh.positions = positions;
+  // A smooth mesh's vertex normals follow its positions, as in Mitsuba when a mesh that has normals
+  // moves (ParameterRegistry::foldNormalAdjoints differentiates through them).
+  if (!mesh.normals.empty()) computeSmoothNormals(mesh, normalWeld);
   computeFaceNormals(m);
   if (accelerated_) accel.updatePositions(m, mesh.positions);
   ++geometryVersion_;
@@ -187,6 +191,7 @@ PoseSnapshot Scene::pose() const {
       auto g = std::make_shared<DeformedGeometry>();
       g->positions = meshes[m].positions;
       g->faceNormals = meshes[m].faceNormals;
+      g->normals = meshes[m].normals;
       if (accelerated_) {
         TriangleMesh copy = meshes[m];
         g->bvh.build({copy}, {true});  // robust traversal, as for the moving copy
@@ -205,11 +210,17 @@ SurfaceHit Scene::surfaceAt(const PoseSnapshot& pose, uint32_t mesh, uint32_t tr
   // the surface point as surfaceAt computes it.
   const TriangleMesh& m = meshes[mesh];
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
-  if (e->deformed) {  // flat-shaded (interpolated normals on deformed meshes are refused)
+  if (e->deformed) {
     const DeformedGeometry& g = *e->deformed;
     SurfaceHit hit = surfaceAt(mesh, tri, b1, b2);
-    hit.p = g.positions[i0] * (1.f - b1 - b2) + g.positions[i1] * b1 + g.positions[i2] * b2;
+    const float b0 = 1.f - b1 - b2;
+    hit.p = g.positions[i0] * b0 + g.positions[i1] * b1 + g.positions[i2] * b2;
     hit.ng = hit.ns = g.faceNormals[tri];
+    if (!g.normals.empty()) {  // as surfaceAt interpolates them
+      const Vec3 n = g.normals[i0] * b0 + g.normals[i1] * b1 + g.normals[i2] * b2;
+      const float len = length(n);
+      if (len > 0.f) hit.ns = dot(n, hit.ng) < 0.f ? -n / len : n / len;
+    }
     return hit;
   }
   const auto& rest = motion.restPositions_[mesh];

@@ -57,6 +57,7 @@ class Scene;
 // samples test their support against these vertices, through their own BVH.
 struct DeformedGeometry {
   std::vector<Vec3> positions, faceNormals;
+  std::vector<Vec3> normals;  // the vertex normals then (smooth meshes), else empty
   EmbreeScene bvh;
 };
 // Light sampling with the scene's emitter meshes (core/lights/light.h holds the per-light forms).
@@ -107,10 +108,13 @@ class Scene {
   // refit-friendly flags), geometry version; and recomputes their velocity fields. Meshes whose
   // motion did not change since the last call keep their vertices.
   void applyShapeMotion(const std::vector<uint32_t>& optimisedMeshes);
-  // Moves a mesh vertex by vertex (vertex parameters): positions, face normals, BVH refit (the
-  // first call rebuilds it with refit-friendly flags and marks the mesh moving and deforming),
-  // geometry version. A call that changes no position changes nothing.
-  void deformMesh(uint32_t mesh, const std::vector<Vec3>& positions);
+  // Moves a mesh vertex by vertex (vertex parameters): positions, face normals, vertex normals
+  // when the mesh has them (recomputed, computeSmoothNormals with `normalWeld`, as Mitsuba does
+  // when a mesh with normals moves), BVH refit (the first call rebuilds it with refit-friendly
+  // flags and marks the mesh moving and deforming; a smooth mesh's material then shades by its
+  // geometric side, as under applyShapeMotion), geometry version. A call that changes no position
+  // changes nothing.
+  void deformMesh(uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<uint32_t>* normalWeld = nullptr);
   // Replaces a mesh's geometry (a vertex parameter's start mesh, or its truth while targets are
   // rendered): face normals, BVH rebuilt, geometry version. Not for emitters or rigidly moving meshes.
   void replaceMesh(uint32_t mesh, TriangleMesh geometry);

@@ -484,6 +484,9 @@ TriangleMesh startMesh(const v1::MeshStart& start, const v1::Shape& shape, const
   m.normals.clear();
   m.uvs.clear();
   validateMesh(m, field);
+  // Shaded as the shape is: smooth when it has vertex normals (recomputed from the positions as
+  // the mesh deforms), else flat.
+  if (!truth.normals.empty()) computeSmoothNormals(m);
   return m;
 }
 

@@ -32,7 +32,8 @@ std::unique_ptr<Scene> buildScene(const invr::v1::Scene& spec, const AssetResolv
 
 // The start mesh of a vertex parameter (optimization.parameters[].initial_mesh, job.proto's
 // MeshStart) for the shape `shape` of the job's scene, whose own geometry is `truth` (world space):
-// flat-shaded, in world space. Errors name `field`.
+// in world space, without uvs, smooth-shaded (angle-weighted vertex normals) when `truth` has
+// vertex normals and flat otherwise. Errors name `field`.
 TriangleMesh startMesh(const invr::v1::MeshStart& start, const invr::v1::Shape& shape, const TriangleMesh& truth, const AssetResolver& assets,
                        const std::string& field);
 

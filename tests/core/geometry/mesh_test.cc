@@ -8,6 +8,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/geometry/edge_topology.h"
 #include "test_util.h"
 
 namespace invr {
@@ -70,6 +71,71 @@ TEST(Mesh, AttributeArraysMustMatchThePositions) {
   m = makeQuad();
   m.uvs[1] = Vec2(std::nanf(""), 0.f);
   EXPECT_THROW(validateMesh(m, "quad"), InputError);
+}
+
+// computeSmoothNormalsAdjoint against central differences of computeSmoothNormals: for a
+// pseudo-random dL/dn and direction d, sum_v dL/dp_v . d_v against (L(p + h d) - L(p - h d)) / 2h
+// with L = sum_v dL/dn_v . n_v, on a bumpy closed icosphere, an open bent grid (boundary vertices,
+// uneven angles) and a bumpy uv sphere welded at its seams and poles. Float rounding of L is
+// ~1e-6 of its size, so h = 1e-3 leaves ~1e-3 relative noise; the truncation error is O(h^2).
+TEST(Mesh, SmoothNormalsAdjointMatchesFiniteDifferences) {
+  uint32_t x = 12345u;
+  auto uniform = [&] {
+    x = x * 1664525u + 1013904223u;
+    return float(x >> 8) / float(1u << 24) * 2.f - 1.f;
+  };
+  TriangleMesh ico = makeIcosphere(2), grid = makeGrid(5), uv = makeSphere(8);
+  for (Vec3& p : ico.positions) p = p * (1.f + 0.15f * uniform());
+  for (Vec3& p : grid.positions) p.z = 0.3f * p.x * p.y + 0.1f * uniform();
+  // Bumps by position, so that the seam copies stay together.
+  for (Vec3& p : uv.positions) p = p * (1.f + 0.1f * std::sin(5.f * p.x + 3.f * p.y) * std::cos(4.f * p.z));
+  const EdgeTopology topology = EdgeTopology::build(uv);
+  std::vector<uint32_t> weld(uv.positions.size());
+  for (uint32_t v = 0; v < weld.size(); ++v) weld[v] = topology.welded(v);
+  ASSERT_LT(topology.weldedVertices(), uv.positions.size()) << "the uv sphere has seam copies";
+  struct Case {
+    const char* what;
+    TriangleMesh* mesh;
+    const std::vector<uint32_t>* weld;
+  };
+  for (const Case& c : {Case{"bumpy icosphere", &ico, nullptr}, Case{"bent grid", &grid, nullptr}, Case{"welded uv sphere", &uv, &weld},
+                        Case{"uv sphere, unwelded", &uv, nullptr}}) {
+    const TriangleMesh& m = *c.mesh;
+    const size_t n = m.positions.size();
+    std::vector<Vec3> dN(n), dir(n), dP;
+    for (size_t v = 0; v < n; ++v) {
+      dN[v] = Vec3(uniform(), uniform(), uniform());
+      dir[v] = Vec3(uniform(), uniform(), uniform());
+    }
+    computeSmoothNormalsAdjoint(m, dN, dP, c.weld);
+    ASSERT_EQ(dP.size(), n);
+    double analytic = 0;
+    for (size_t v = 0; v < n; ++v) analytic += double(dot(dP[v], dir[v]));
+    auto loss = [&](float h) {
+      TriangleMesh moved = m;
+      for (size_t v = 0; v < n; ++v) moved.positions[v] = moved.positions[v] + dir[v] * h;
+      computeSmoothNormals(moved, c.weld);
+      double sum = 0;
+      for (size_t v = 0; v < n; ++v) sum += double(dot(dN[v], moved.normals[v]));
+      return sum;
+    };
+    const float h = 1e-3f;
+    const double fd = (loss(h) - loss(-h)) / (2.0 * double(h));
+    EXPECT_NEAR(analytic, fd, 1e-2 * std::abs(fd)) << c.what;
+    EXPECT_GT(std::abs(fd), 1.0) << c.what << ": the direction changes the normals";
+  }
+  // Welded, the copies share one normal.
+  TriangleMesh welded = uv;
+  computeSmoothNormals(welded, &weld);
+  std::vector<Vec3> first(topology.weldedVertices(), Vec3(0.f));
+  std::vector<bool> seen(first.size(), false);
+  for (size_t v = 0; v < weld.size(); ++v) {
+    if (!seen[weld[v]]) {
+      seen[weld[v]] = true;
+      first[weld[v]] = welded.normals[v];
+    }
+    EXPECT_EQ(welded.normals[v], first[weld[v]]) << "copy " << v;
+  }
 }
 
 }  // namespace
