@@ -25,7 +25,7 @@ FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator
     in.pixel = uint64_t(c.py) * uint64_t(W) + uint64_t(c.px);
     in.o = cam.eye;
     in.d = cam.direction(x.x + sign * eps * n.x, x.y + sign * eps * n.y, W, H);
-    Sampler sideSampler = sampler.fork(uint64_t(k));
+    Sampler sideSampler = sampler.fork(0);  // common random numbers for the two sides
     side[k] = estimator.sample(in, sideSampler, counters, Rgb(0.f), nullptr, nullptr);
   }
   c.jump = side[0] - side[1];

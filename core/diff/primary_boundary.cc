@@ -69,6 +69,8 @@ float sideOffset(const Scene& scene, const Camera& cam, const FilmEdge& e, Vec2 
 
 }  // namespace
 
+float PrimaryBoundary::creaseJumpBound(Vec3 n0, Vec3 n1) { return std::clamp(length(n0 - n1), kMinCreaseWeight, 1.f); }
+
 PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
     : scene_(scene), params_(params), topology_(topology) {}
 
@@ -83,7 +85,7 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   BoundaryPassStats st;
   // Candidates in the current pose: silhouettes from the eye and creases, clipped.
   std::vector<FilmEdge> edges;
-  std::vector<float> lengths;
+  std::vector<float> lengths, weights, jumpBounds;
   for (uint32_t m : params_.movingMeshes()) {
     const TriangleMesh& mesh = scene_.meshes[m];
     std::vector<Vec3> normals(mesh.triangleCount());
@@ -114,20 +116,27 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
       const Vec2 span = fe.fb - fe.fa;
       fe.length = std::sqrt(span.x * span.x + span.y * span.y) * (fe.s1 - fe.s0);
       if (!(fe.length > 0.f)) continue;
+      const bool flatCrease = !fe.silhouette && fe.face1 != MeshEdge::kNone && mesh.normals.empty();
+      const float bound = flatCrease ? creaseJumpBound(normals[fe.face0], normals[fe.face1]) : 1.f;
       edges.push_back(fe);
       lengths.push_back(fe.length);
+      weights.push_back(fe.length * bound);
+      jumpBounds.push_back(bound);
     }
   }
   st.candidateEdges = edges.size();
   for (float l : lengths) st.filmLength += double(l);
   if (edges.empty() || samples <= 0) return st;
-  const Distribution1D pick(lengths);
-  const float total = float(st.filmLength);
+  const Distribution1D pick(weights);
+  double weightSum = 0;
+  for (float w : weights) weightSum += double(w);
+  const float total = float(weightSum);
 
   runBoundarySamples(samples, bv.scratch, bv.gradient, bv.cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
     Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
     float u = 0.f;
-    const FilmEdge& e = edges[pick.sample(sampler.next1D(), &u)];
+    const size_t picked = pick.sample(sampler.next1D(), &u);
+    const FilmEdge& e = edges[picked];
     // A point uniform in film length on the clipped part, and the edge point under it
     // (perspective-correct: 1/z and t/z are linear on the film).
     const float s = e.s0 + (e.s1 - e.s0) * u;
@@ -146,7 +155,8 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     const Vec2 n(-dir.y, dir.x);
     const FilmCrossing c = radianceJump(scene_, estimator, cam, x, n, sideOffset(scene_, cam, e, x, n, counters), sampler, counters);
     const Rgb adj = adjoint.rgb(c.px, c.py);
-    const float w = (adj.x * c.jump.x + adj.y * c.jump.y + adj.z * c.jump.z) * total / float(samples);
+    // 1 / pdf per unit film length: the sum of weights over the edge's jump bound.
+    const float w = (adj.x * c.jump.x + adj.y * c.jump.y + adj.z * c.jump.z) * total / (jumpBounds[picked] * float(samples));
     if (w == 0.f) return;
     Vec3 dx, dy;
     filmJacobian(cam, P, H, dx, dy);
@@ -169,7 +179,8 @@ const RegisterBoundaryTerm kPrimary({
     .describe =
         [](const BoundaryPlanInput& in) {
           return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
-                 " edge samples per view and step on silhouette and crease edges of moving meshes, by clipped film length, hidden edge "
+                 " edge samples per view and step on silhouette and crease edges of moving meshes, by clipped film length times a "
+                 "bound on the jump (creases between flat faces: |n0 - n1|), both sides with the same random numbers, hidden edge "
                  "points skipped; both sides traced with the interior estimator; box pixel filter, so no pixel-boundary term";
         },
     .memoryBytes = {},
