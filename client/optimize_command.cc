@@ -6,6 +6,7 @@
 #include <limits>
 #include <memory>
 
+#include "proto/wire/cli_checks.h"
 #include "client/lab/bench_report.h"
 #include "client/commands.h"
 #include "client/common/job_argument.h"
@@ -50,19 +51,34 @@ void runOptimize(const OptimizeArgs& a) {
   const char* method = gradientMethodName(problem.gradient.method);
   std::cout << "optimizing " << (job.name().empty() ? a.job : job.name()) << ": " << problem.params.size() << " parameter values, "
             << problem.steps << " steps, method " << method << ", " << problem.scene->cameras.size() << " views\n"
-            << "rendering targets (" << problem.targetSpp << " spp)...\n" << std::flush;
+            << "rendering targets (" << problem.targetSpp << " spp, " << problem.scene->cameras.size() << " view(s))...\n" << std::flush;
+  ProgressBar targetBar("targets");
   ProgressBar bar("optimize");
   bool tty = isatty(fileno(stdout)) != 0;
   LocalRunResult result;
   try {
+    bool targetsDone = false;
     result = runLocally(problem, [&](const StepReport& r) {
-      csv.add({method, r.step, r.seconds, r.loss, r.parameterError, std::numeric_limits<double>::quiet_NaN(), r.stats, r.shapeError});
+      if (!targetsDone) {
+        targetsDone = true;
+        targetBar.finish();
+      }
+      ConvergenceRow row{method, r.step, r.seconds, r.loss, r.parameterError, std::numeric_limits<double>::quiet_NaN(), r.stats, r.shapeError};
+      row.imageLoss = r.imageLoss;
+      csv.add(std::move(row));
       if (csv.rows() % 100 == 0) csv.write();  // a long run's CSV stays current
-      bar.update(double(r.step) / problem.steps);
+      char detail[160];
+      std::snprintf(detail, sizeof detail, "step %llu/%d  loss %.4g  image_loss %.4g%s", (unsigned long long)r.step, problem.steps, r.loss,
+                    r.imageLoss, r.parameterError >= 0 ? ("  param_error " + BenchReport::fmt(r.parameterError)).c_str() : "");
+      bar.update(double(r.step) / problem.steps, detail);
       if (!tty && (r.step % 10 == 0 || int(r.step) == problem.steps))
-        std::cout << "step " << r.step << "/" << problem.steps << "  loss " << r.loss << "  param_error " << r.parameterError
+        std::cout << "step " << r.step << "/" << problem.steps << "  loss " << r.loss << "  image_loss " << r.imageLoss
+                  << "  param_error " << r.parameterError
                   << (r.shapeError >= 0 ? "  shape_error " + std::to_string(r.shapeError) : std::string()) << "  " << r.seconds << " s\n"
                   << std::flush;
+    }, [&](int done, int views) {
+      targetBar.update(double(done) / views, std::to_string(done) + "/" + std::to_string(views) + " view(s)");
+      if (!tty && done == views) std::cout << "targets rendered\n" << std::flush;
     });
   } catch (const std::exception&) {
     csv.write();  // the steps that were done (a diverging run's among them)
@@ -72,10 +88,10 @@ void runOptimize(const OptimizeArgs& a) {
   bar.finish();
   writeParameters(dir, problem.params, result.theta, *problem.scene);
   try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
-    // Sampling parameters have no ground truth: chart the loss instead.
+    // Sampling parameters and photographs have no ground truth: chart the smoothed image loss.
     const bool truth = parameterError(problem, problem.initial) >= 0;
     drawConvergenceChart({dir / "convergence.csv"}, dir / "convergence.png", "seconds",
-                         truth ? "param_error" : !problem.truthMeshes.empty() ? "shape_error" : "loss");
+                         truth ? "param_error" : !problem.truthMeshes.empty() ? "shape_error" : "image_loss");
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
   }
@@ -105,7 +121,8 @@ void runOptimize(const OptimizeArgs& a) {
             << (last.shapeError >= 0 ? ", shape error " + BenchReport::fmt(shapeError(problem, problem.initial)) + " -> " + BenchReport::fmt(last.shapeError)
                                      : std::string())
             << ", loss "
-            << result.history.front().loss << " -> " << last.loss << " in " << last.seconds << " s\n"
+            << result.history.front().loss << " -> " << last.loss << ", image loss " << result.history.front().imageLoss << " -> "
+            << last.imageLoss << " in " << last.seconds << " s (targets " << BenchReport::fmt(result.targetSeconds) << " s)\n"
             << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, initial/target/final renders)\n";
 }
 
@@ -116,7 +133,7 @@ void addOptimizeCommands(CLI::App& app, int& exitCode) {
   auto* cmd = app.add_subcommand("optimize", "Run an inverse problem in this process (a zoo scene's built-in job, a job file or a Mitsuba 3 scene with --param)");
   cmd->add_option("job", args->job, "zoo scene name, job file (.json with an 'optimization') or Mitsuba 3 scene (.xml, with --param)")->required();
   cmd->add_option("-o,--out", args->out, "output folder")->capture_default_str();
-  cmd->add_option("--steps", args->steps, "override the number of steps");
+  cmd->add_option("--steps", args->steps, "override the number of steps")->check(invr::wire::kPositive);
   cmd->add_option("--method", args->method, "override the method")->check(CLI::IsMember({"pt", "ris", "restir"}));
   addSceneArgs(cmd, args->sceneArgs, true);
   cmd->callback([args, &exitCode] { runOptimize(*args); exitCode = 0; });

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -15,6 +16,8 @@
 #include <sstream>
 #include <thread>
 
+#include "proto/wire/cli_checks.h"
+#include "proto/wire/json_lines.h"
 #include "client/lab/bench_report.h"
 #include "client/commands.h"
 #include "client/common/embedded.h"
@@ -24,6 +27,7 @@
 #include "client/common/service_client.h"
 #include "core/job/memory_model.h"
 #include "core/job/plan.h"
+#include "core/job/scene_description.h"
 #include "core/job/problem.h"
 #include "client/common/figures.h"
 #include "core/restir/reservoir_store.h"
@@ -47,7 +51,7 @@ int fetchResults(ServiceClient& c, const std::string& job, const std::filesystem
   const std::filesystem::path csv = dir / "convergence.csv";
   if (!std::filesystem::exists(csv)) return n;
   // Chart the parameter error; -1 when the job has none (no ground truth, or a start mesh): then
-  // the shape error if the job has one, else the loss.
+  // the shape error if the job has one, else the smoothed image loss (else the loss).
   std::string y = "loss";
   {
     std::ifstream in(csv);
@@ -66,9 +70,10 @@ int fetchResults(ServiceClient& c, const std::string& job, const std::filesystem
           if (names[i] == name) return values[i];
         return "";
       };
-      const std::string pe = value("param_error"), se = value("shape_error");
+      const std::string pe = value("param_error"), se = value("shape_error"), il = value("image_loss");
       if (!pe.empty() && pe[0] != '-') y = "param_error";
       else if (!se.empty() && se[0] != '-') y = "shape_error";
+      else if (!il.empty()) y = "image_loss";
     }
   }
   try {
@@ -123,6 +128,11 @@ void addConnectionArgs(CLI::App* cmd) {
   cmd->add_option("--token-file", a.tokenFile, "file holding the server's client token (default: $INVR_TOKEN)");
 }
 
+std::string defaultServerAddress() {
+  const char* env = std::getenv("INVR_SERVER");
+  return env && *env ? std::string(env) : std::string("127.0.0.1:50051");
+}
+
 ServiceClient connect(const std::string& server) {
   const ConnectionArgs& a = connectionArgs();
   wire::ClientSecurity sec;
@@ -145,9 +155,9 @@ struct JobArgs {
 
 void addJobArgs(CLI::App* cmd, JobArgs& a) {
   cmd->add_option("job", a.job, "zoo scene name (its built-in job), job file (.json) or Mitsuba 3 scene (.xml, with --param)")->required();
-  cmd->add_option("--steps", a.steps, "override the number of steps")->check(CLI::PositiveNumber);
+  cmd->add_option("--steps", a.steps, "override the number of steps")->check(invr::wire::kPositive);
   cmd->add_option("--method", a.method, "override the gradient method")->check(CLI::IsMember({"pt", "ris", "restir"}));
-  cmd->add_option("--target-spp", a.targetSpp, "override the samples per pixel of rendered targets")->check(CLI::PositiveNumber);
+  cmd->add_option("--target-spp", a.targetSpp, "override the samples per pixel of rendered targets")->check(invr::wire::kPositive);
   cmd->add_option("--priority", a.priority,
                   "scheduling.priority: the job's weight in the share of worker time among jobs running at once (1..100; default 1)")
       ->check(CLI::Range(1, 100));
@@ -190,7 +200,11 @@ class EventPrinter {
     }
     if (e.has_step()) {
       const auto& s = e.step();
-      bar_.update(s.steps() ? double(s.step()) / double(s.steps()) : 0.0);
+      char detail[160];
+      std::snprintf(detail, sizeof detail, "step %llu/%llu  loss %.4g  image_loss %.4g%s  eta %.0f s", (unsigned long long)s.step(),
+                    (unsigned long long)s.steps(), s.loss(), s.image_loss(),
+                    s.param_error() >= 0 ? ("  param_error " + std::to_string(s.param_error()).substr(0, 8)).c_str() : "", s.eta_seconds());
+      bar_.update(s.steps() ? double(s.step()) / double(s.steps()) : 0.0, detail);
       uint64_t every = std::max<uint64_t>(1, s.steps() / 20);
       if (!tty_ && (s.step() % every == 0 || s.step() == s.steps())) std::cout << describeEvent(e) << std::endl;
       lastStep_ = e.step();
@@ -238,17 +252,57 @@ unsigned embeddedWorkerThreads(size_t shards, int workersAsked) {
 
 // Without a server: the plan for `invr run`'s local workers on this machine. With one: the
 // server's answer (the same validation as a submission, memory for its workers' threads).
-void printPlan(v1::JobSpec job, const std::filesystem::path& baseDir, const std::string& server) {
+void printPlan(v1::JobSpec job, const std::filesystem::path& baseDir, const std::string& server, bool json) {
+  v1::JobPlan plan;
   if (!server.empty()) {
     ServiceClient c = connect(server);
     c.uploadAssets(job, baseDir);
-    std::cout << c.plan(job).text();
+    plan = c.plan(job);
+  } else {
+    AssetResolver assets;
+    assets.baseDir = baseDir;
+    Problem p = buildProblem(job, assets, SceneUse::Validate);
+    plan = planJob(job, p, embeddedWorkerThreads(p.shards.size(), 0));
+  }
+  if (json)
+    std::cout << wire::jsonLine(plan) << "\n";
+  else
+    std::cout << plan.text();
+}
+
+// ------------------------------------------------------------------------------- params
+
+// A scene's optimisable names: asked of the server with --server, else built here.
+void printParams(v1::JobSpec job, const std::filesystem::path& baseDir, const std::string& server, bool json) {
+  v1::SceneDescription desc;
+  if (!server.empty()) {
+    ServiceClient c = connect(server);
+    c.uploadAssets(job, baseDir);
+    desc = c.describe(job);
+  } else {
+    AssetResolver assets;
+    assets.baseDir = baseDir;
+    std::unique_ptr<Scene> scene = buildJobScene(job, assets, SceneUse::Validate);
+    desc = describeScene(*scene);
+  }
+  if (json) {
+    std::cout << wire::jsonLine(desc) << "\n";
     return;
   }
-  AssetResolver assets;
-  assets.baseDir = baseDir;
-  Problem p = buildProblem(job, assets, SceneUse::Validate);
-  std::cout << planJob(job, p, embeddedWorkerThreads(p.shards.size(), 0)).text();
+  size_t width = 0;
+  for (const auto& p : desc.parameters()) width = std::max(width, p.name().size());
+  for (const auto& p : desc.parameters()) {
+    std::ostringstream line;
+    line << p.name() << std::string(width + 2 - p.name().size(), ' ') << p.kind() << ", " << p.size() << " value(s)";
+    if (p.width() > 0) line << " (" << p.width() << "x" << p.height() << "x" << p.channels() << ")";
+    line << ", bounds [" << p.lower() << ", " << p.upper() << "]"
+         << ", learning rate " << p.learning_rate();
+    if (p.aliases_size() > 0) {
+      line << "; Mitsuba:";
+      for (const auto& a : p.aliases()) line << " " << a;
+    }
+    std::cout << line.str() << "\n";
+  }
 }
 
 // ------------------------------------------------------------------------------- embedded
@@ -271,11 +325,11 @@ int runJob(const RunArgs& a) {
     ServiceClient c = connect(a.server);
     c.uploadAssets(job, baseDir);
     auto r = c.submit(job, randomRequestId());
-    std::cout << "submitted " << r.job_id() << " to " << a.server << "\n";
+    (a.json ? std::cerr : std::cout) << "submitted " << r.job_id() << " to " << a.server << "\n";
     int code = watchToEnd(c, r.job_id(), 0, a.json, "the job goes on: invr watch " + r.job_id() + " --server " + a.server);
     if (code == exit_code::kOk || code == exit_code::kJobFailed) {
       int n = fetchResults(c, r.job_id(), out);
-      std::cout << "wrote " << n << " file(s) to " << where(out) << "\n";
+      (a.json ? std::cerr : std::cout) << "wrote " << n << " file(s) to " << where(out) << "\n";
     }
     return code;
   }
@@ -330,7 +384,7 @@ int runJob(const RunArgs& a) {
         if (st.param_error() >= 0) std::cout << ", parameter error " << parameterError(probe, probe.initial) << " -> " << st.param_error();
         std::cout << "\n";
       }
-      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv and .png, final/target renders, progress.jsonl)\n";
+      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv and .png, initial/final/target renders, progress.jsonl)\n";
     }
   }
   service.stop();
@@ -346,14 +400,16 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   r->add_option("-o,--out", run->out, "folder for the results")->capture_default_str();
   r->add_option("--server", run->server, "host:port of a running invr-server (default: embedded)");
   addConnectionArgs(r);
-  r->add_option("--workers", run->workers, "local worker processes (embedded; default one per core, at least 2)")->check(CLI::PositiveNumber);
+  r->add_option("--workers", run->workers, "local worker processes (embedded; default one per core, at least 2)")->check(invr::wire::kPositive);
   r->add_option("--store", run->store, "keep the embedded server's job store here (an interrupted run resumes)");
   r->add_flag("--json", run->json, "one JSON object per progress event on stdout");
   r->add_flag("-v,--verbose", run->verbose, "the embedded server's log on stderr");
   r->callback([run, &exitCode] { exitCode = runJob(*run); });
 
   auto serverOpt = [](CLI::App* cmd, std::string& s) {
-    cmd->add_option("--server", s, "host:port of the invr-server")->default_val("127.0.0.1:50051")->capture_default_str();
+    cmd->add_option("--server", s, "host:port of the invr-server (default: $INVR_SERVER, else 127.0.0.1:50051)")
+        ->default_str(defaultServerAddress());
+    s = defaultServerAddress();
     addConnectionArgs(cmd);
   };
 
@@ -387,7 +443,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   wc->add_flag("--json", w->json, "one JSON object per event");
   wc->add_option("--reconnect-timeout", w->reconnect, "seconds to wait for the server to come back if the stream breaks (a restart)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(invr::wire::kNonNegative);
   wc->callback([w, &exitCode] {
     interruptFlag();
     ServiceClient c = connect(w->server);
@@ -404,11 +460,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     ServiceClient c = connect(st->server);
     v1::JobStatus s = c.get(st->id);
     if (st->json) {
-      std::string js;
-      google::protobuf::util::JsonPrintOptions o;
-      o.preserve_proto_field_names = true;
-      (void)google::protobuf::util::MessageToJsonString(s, &js, o);
-      std::cout << js << "\n";
+      std::cout << wire::jsonLine(s) << "\n";
     } else {
       std::cout << s.job_id() << "  " << v1::JobState_Name(s.state()) << "  step " << s.step() << "/" << s.steps() << "  loss " << s.loss();
       if (s.param_error() >= 0) std::cout << "  param_error " << s.param_error();
@@ -424,9 +476,15 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   auto ls = std::make_shared<IdArgs>();
   auto* lc = app.add_subcommand("list", "List the server's jobs");
   serverOpt(lc, ls->server);
+  lc->add_flag("--json", ls->json, "the ListJobsResponse as one JSON object ({\"jobs\": [...]}, numbers as numbers)");
   lc->callback([ls, &exitCode] {
     ServiceClient c = connect(ls->server);
     const v1::ListJobsResponse all = c.list();
+    exitCode = exit_code::kOk;
+    if (ls->json) {
+      std::cout << wire::jsonLine(all) << "\n";
+      return;
+    }
     for (const auto& j : all.jobs())
       std::cout << j.job_id() << "  " << v1::JobState_Name(j.state()) << "  " << j.name() << "  step " << j.step() << "/" << j.steps()
                 << "  priority " << j.priority() << "\n";
@@ -459,9 +517,15 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   auto wk = std::make_shared<IdArgs>();
   auto* wkc = app.add_subcommand("workers", "List the workers connected to a server");
   serverOpt(wkc, wk->server);
+  wkc->add_flag("--json", wk->json, "the ListWorkersResponse as one JSON object ({\"workers\": [...]})");
   wkc->callback([wk, &exitCode] {
     ServiceClient c = connect(wk->server);
     const v1::ListWorkersResponse all = c.workers();
+    exitCode = exit_code::kOk;
+    if (wk->json) {
+      std::cout << wire::jsonLine(all) << "\n";
+      return;
+    }
     for (const auto& w : all.workers())
       std::cout << w.name() << "  " << w.capacity() << " thread(s)  " << w.shards() << " shard(s) of " << w.jobs() << " job(s)"
                 << (w.busy() ? "  busy" : "  idle") << (w.leaving() ? "  leaving" : "") << "\n";
@@ -478,8 +542,10 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
       ->required();
   chc->add_option("-o,--out", ch->out, "chart file (.png or .svg)")->capture_default_str();
   chc->add_option("--x", ch->x, "x axis")->check(CLI::IsMember({"seconds", "step", "steps"}))->capture_default_str();
-  chc->add_option("--y", ch->y, "y axis (image_error: CSVs from invr eval and bench reconstruct)")
-      ->check(CLI::IsMember({"param_error", "loss", "image_error", "shape_error"}))
+  chc->add_option("--y", ch->y,
+                  "y axis (image_error: CSVs from invr eval and bench reconstruct; image_loss: the smoothed one-render loss of run, "
+                  "fetch and optimize)")
+      ->check(CLI::IsMember({"param_error", "loss", "image_error", "shape_error", "image_loss"}))
       ->capture_default_str();
   chc->add_option("--title", ch->title, "chart title");
   serverOpt(chc, ch->server);
@@ -510,8 +576,28 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     exitCode = exit_code::kOk;
   });
 
+  struct ParamsArgs {
+    std::string scene, server;
+    SceneArgs sceneArgs;
+    bool json = false;
+  };
+  auto pa = std::make_shared<ParamsArgs>();
+  auto* pac = app.add_subcommand("params", "List the names a job may optimise in a scene (sizes, bounds, learning rates, Mitsuba names)");
+  pac->add_option("scene", pa->scene, "zoo scene name, job file (.json), Mitsuba 3 scene (.xml) or - (job JSON on standard input)")->required();
+  addSceneArgs(pac, pa->sceneArgs, false);
+  pac->add_option("--server", pa->server, "ask this server (DescribeScene) instead of building the scene here");
+  addConnectionArgs(pac);
+  pac->add_flag("--json", pa->json, "the SceneDescription (service.proto) as one JSON object: {\"parameters\": [...]}");
+  pac->callback([pa, &exitCode] {
+    AssetResolver assets;
+    v1::JobSpec job = jobFromArgument(pa->scene, assets, pa->sceneArgs);
+    printParams(job, assets.baseDir, pa->server, pa->json);
+    exitCode = exit_code::kOk;
+  });
+
   struct PlanArgs : JobArgs {
     std::string server;
+    bool json = false;
   };
   auto pl = std::make_shared<PlanArgs>();
   auto* pc = app.add_subcommand("plan", "Print what a job will compute (estimators, parameters, memory) without running it");
@@ -520,10 +606,11 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
                  "ask this server (validated as a submission would be; memory for its workers' threads); without it, the plan for "
                  "`invr run`'s local workers on this machine");
   addConnectionArgs(pc);
+  pc->add_flag("--json", pl->json, "the JobPlan (service.proto) as one JSON object");
   pc->callback([pl, &exitCode] {
     std::filesystem::path baseDir;
     v1::JobSpec job = loadJob(*pl, baseDir);
-    printPlan(job, baseDir, pl->server);
+    printPlan(job, baseDir, pl->server, pl->json);
     exitCode = exit_code::kOk;
   });
 }

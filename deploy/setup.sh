@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package that invr's build, tests, demo and charts need (clang and its
+# Installs every Debian 12 package that invr's build, tests, demo, charts and Python package need
+# (python3-grpcio, -protobuf, -numpy, -openimageio and -pytest for build/python/invr; clang and its
 # runtime libraries for the fuzz targets of deploy/fuzz.sh: libFuzzer is in libclang-rt-14-dev;
 # Slurm and munge for the real-Slurm test of deploy/slurm/invr.sbatch; openssl makes the TLS
 # test's certificates; iproute2 gives `ip netns` for the multi-host test; Node.js, npm and kubectl
@@ -26,7 +27,7 @@ BUILD_PACKAGES=(
 # Tests, demo, charts and deployment checks.
 PACKAGES=(
   "${BUILD_PACKAGES[@]}"
-  python3 python3-grpcio python3-matplotlib
+  python3 python3-grpcio python3-protobuf python3-numpy python3-matplotlib python3-pytest python3-openimageio
   clang libclang-rt-14-dev
   slurm-wlm munge
   openssl iproute2

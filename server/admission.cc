@@ -5,6 +5,7 @@
 
 #include "core/job/memory_model.h"
 #include "core/job/plan.h"
+#include "core/job/scene_description.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/limits.h"
@@ -36,7 +37,29 @@ AssetResolver Admission::resolver(MemoryBudget* budget) const {
   return r;
 }
 
-grpc::Status Admission::admit(v1::JobSpec& spec, v1::JobPlan* plan, std::unique_ptr<Problem>* keep) const {
+namespace {
+
+// Runs a build step; what it throws becomes the status a client gets: over a budget or out of
+// memory RESOURCE_EXHAUSTED, a bad input INVALID_ARGUMENT, anything else INTERNAL.
+template <class F>
+grpc::Status statusOf(F&& build) {
+  try {
+    build();
+  } catch (const ResourceError& e) {
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, e.what());
+  } catch (const InputError& e) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
+  } catch (const std::bad_alloc&) {
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "the job does not fit in the server's memory");
+  } catch (const std::exception& e) {
+    return grpc::Status(grpc::StatusCode::INTERNAL, e.what());
+  }
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::Status Admission::checkSpecAndAssets(v1::JobSpec& spec) const {
   // Fields this server does not know would be stored and sent to every worker unread.
   spec.DiscardUnknownFields();
   try {
@@ -59,9 +82,14 @@ grpc::Status Admission::admit(v1::JobSpec& spec, v1::JobPlan* plan, std::unique_
       bad = grpc::Status(grpc::StatusCode::NOT_FOUND, field + ".sha256: asset " + ref.sha256() + " was not uploaded");
   });
   if (bad) return *bad;
+  return grpc::Status::OK;
+}
+
+grpc::Status Admission::admit(v1::JobSpec& spec, v1::JobPlan* plan, std::unique_ptr<Problem>* keep) const {
+  if (grpc::Status st = checkSpecAndAssets(spec); !st.ok()) return st;
   if (!spec.has_optimization() || spec.optimization().parameters_size() == 0)
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "optimization.parameters: a job needs at least one parameter to recover");
-  try {
+  return statusOf([&] {
     // Every texture, mesh and target is charged to the job's budget before it is allocated; the
     // problem is dropped again once validated unless `keep` takes it.
     MemoryBudget budget(maxJobBytes_);
@@ -73,16 +101,16 @@ grpc::Status Admission::admit(v1::JobSpec& spec, v1::JobPlan* plan, std::unique_
     const double state = mem.images + mem.reservoirs + mem.gradients + mem.textures;  // may exceed 2^64: compare as double
     budget.charge(state < double(budget.limit()) ? uint64_t(state) : budget.limit() + 1,
                   "per-worker state (images, reservoirs, gradients of the largest shard, as `invr plan` estimates it)");
-  } catch (const ResourceError& e) {
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, e.what());
-  } catch (const InputError& e) {
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, e.what());
-  } catch (const std::bad_alloc&) {
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED, "the job does not fit in the server's memory");
-  } catch (const std::exception& e) {
-    return grpc::Status(grpc::StatusCode::INTERNAL, e.what());
-  }
-  return grpc::Status::OK;
+  });
+}
+
+grpc::Status Admission::describe(v1::JobSpec& spec, v1::SceneDescription* out) const {
+  if (grpc::Status st = checkSpecAndAssets(spec); !st.ok()) return st;
+  return statusOf([&] {
+    MemoryBudget budget(maxJobBytes_);
+    std::unique_ptr<Scene> scene = buildJobScene(spec, resolver(&budget), SceneUse::Validate);
+    *out = describeScene(*scene);
+  });
 }
 
 void PreparedProblem::offer(const std::string& job, std::unique_ptr<Problem> p) {

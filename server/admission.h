@@ -29,11 +29,16 @@ class Admission {
   // `keep` the validated problem.
   grpc::Status admit(invr::v1::JobSpec& spec, invr::v1::JobPlan* plan, std::unique_ptr<Problem>* keep = nullptr) const;
 
+  // The scene's optimisable parameters (DescribeScene): the same spec and asset checks and memory
+  // limit as admit, without needing an optimisation block.
+  grpc::Status describe(invr::v1::JobSpec& spec, invr::v1::SceneDescription* out) const;
+
   // The server's copy of a job's problem (validated, no BVH) under the job memory limit.
   Problem build(const invr::v1::JobSpec& spec) const;
 
  private:
   unsigned threads() const;
+  grpc::Status checkSpecAndAssets(invr::v1::JobSpec& spec) const;
   AssetResolver resolver(MemoryBudget* budget) const;
   const AssetStore& assets_;
   uint64_t maxJobBytes_;

@@ -139,25 +139,40 @@ grpc::Status ClientService::submit(const v1::SubmitJobRequest& req, v1::SubmitJo
   return grpc::Status::OK;
 }
 
-grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
-  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "PlanJob"); !st.ok()) return finish(ctx, st);
-  auto req = std::make_shared<v1::PlanJobRequest>();
+template <class Req, class Resp, class Work>
+grpc::ServerUnaryReactor* ClientService::answerOffThread(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out,
+                                                         const char* method, Work work) {
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, method); !st.ok()) return finish(ctx, st);
+  auto req = std::make_shared<Req>();
   if (grpc::Status st = parseRequest(*bytes, *req); !st.ok()) return finish(ctx, st);
   auto* reactor = ctx->DefaultReactor();
-  // Building the problem loads meshes and textures: not on a gRPC thread.
-  control_.post([this, reactor, req, out] {
-    v1::JobSpec spec = req->spec();
-    v1::JobPlan plan;
+  control_.post([reactor, req, out, work] {
+    Resp resp;
     grpc::Status st;
     try {
-      st = admission_.admit(spec, &plan);
+      st = work(*req, &resp);
     } catch (const std::exception& e) {
       st = grpc::Status(grpc::StatusCode::INTERNAL, e.what());
     }
-    if (st.ok()) *out = toBytes(plan);
+    if (st.ok()) *out = toBytes(resp);
     reactor->Finish(st);
   });
   return reactor;
+}
+
+grpc::ServerUnaryReactor* ClientService::PlanJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
+  return answerOffThread<v1::PlanJobRequest, v1::JobPlan>(ctx, bytes, out, "PlanJob", [this](v1::PlanJobRequest& req, v1::JobPlan* plan) {
+    v1::JobSpec spec = req.spec();
+    return admission_.admit(spec, plan);
+  });
+}
+
+grpc::ServerUnaryReactor* ClientService::DescribeScene(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
+  return answerOffThread<v1::DescribeSceneRequest, v1::SceneDescription>(
+      ctx, bytes, out, "DescribeScene", [this](v1::DescribeSceneRequest& req, v1::SceneDescription* desc) {
+        v1::JobSpec spec = req.spec();
+        return admission_.describe(spec, desc);
+      });
 }
 
 grpc::ServerUnaryReactor* ClientService::GetJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {

@@ -18,7 +18,8 @@ using RawClientApi = invr::v1::InvrService::WithRawCallbackMethod_UploadAsset<in
     invr::v1::InvrService::WithRawCallbackMethod_GetJob<invr::v1::InvrService::WithRawCallbackMethod_ListJobs<
         invr::v1::InvrService::WithRawCallbackMethod_CancelJob<invr::v1::InvrService::WithRawCallbackMethod_WatchJob<
             invr::v1::InvrService::WithRawCallbackMethod_FetchResult<invr::v1::InvrService::WithRawCallbackMethod_ListWorkers<
-                invr::v1::InvrService::WithRawCallbackMethod_PlanJob<invr::v1::InvrService::Service>>>>>>>>>;
+                invr::v1::InvrService::WithRawCallbackMethod_PlanJob<
+                    invr::v1::InvrService::WithRawCallbackMethod_DescribeScene<invr::v1::InvrService::Service>>>>>>>>>>;
 
 class ClientService final : public RawClientApi {
  public:
@@ -30,6 +31,7 @@ class ClientService final : public RawClientApi {
   grpc::ServerReadReactor<grpc::ByteBuffer>* UploadAsset(grpc::CallbackServerContext*, grpc::ByteBuffer* info) override;
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* PlanJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerUnaryReactor* DescribeScene(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
@@ -38,6 +40,12 @@ class ClientService final : public RawClientApi {
   grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
 
  private:
+  // A unary call whose answer builds a scene (reads meshes and textures): parsed and checked
+  // here, answered from the control queue, never on a gRPC thread.
+  template <class Req, class Resp, class Work>
+  grpc::ServerUnaryReactor* answerOffThread(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out,
+                                            const char* method, Work work);
+
   grpc::Status submit(const invr::v1::SubmitJobRequest& req, invr::v1::SubmitJobResponse& resp);
 
   JobBook& book_;

@@ -291,7 +291,9 @@ grpc::Status JobBook::resultPath(const std::string& id, const std::string& name,
   const auto& res = it->second.rec.results();
   if (std::find(res.begin(), res.end(), name) == res.end())
     return grpc::Status(grpc::StatusCode::NOT_FOUND, "job " + id + " has no result '" + name.substr(0, 256) + "'");
-  *path = store_.resultsDir(id) / name;
+  // The log is served live from the store: the copy among the results was made before the job's
+  // final event, which the live one ends with.
+  *path = name == "progress.jsonl" && std::filesystem::exists(store_.jobDir(id) / name) ? store_.jobDir(id) / name : store_.resultsDir(id) / name;
   return grpc::Status::OK;
 }
 

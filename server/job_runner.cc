@@ -13,6 +13,7 @@
 #include "core/image/image.h"
 #include "core/optim/optimization_loop.h"
 #include "core/optim/results_io.h"
+#include "core/optim/smoothed_loss.h"
 #include "core/stopwatch.h"
 #include "proto/wire/sha256.h"
 
@@ -100,7 +101,8 @@ void JobRunner::run(const std::string& id) {
   } catch (const JobCancelled&) {
     if (scheduled) scheduler_.removeJob(id);
     if (stopping_ && !book_.cancelRequested(id)) return;  // server shutting down: the job resumes on restart
-    book_.end(id, v1::CANCELLED, "cancelled by request");
+    const std::vector<std::string> files = writeCheckpointResults(c);
+    book_.end(id, v1::CANCELLED, "cancelled by request", &files);
     return;
   } catch (const JobFailed& f) {
     if (scheduled) scheduler_.removeJob(id);
@@ -162,6 +164,14 @@ void JobRunner::runSteps(Context& c) {
   start.counter = counter;
   start.step = step;
   OptimizationLoop loop(p, std::move(start), p.burnIn, p.steps);
+  // The smoothed image loss goes on from the logged steps of an earlier run of this job.
+  SmoothedLoss imageLoss;
+  if (saved) {
+    std::map<uint64_t, double> logged;
+    for (const auto& e : store_.loadEvents(id))
+      if (e.has_step() && e.step().step() <= step) logged[e.step().step()] = e.step().stats().primal_loss();
+    for (const auto& [k, v] : logged) imageLoss.add(v);
+  }
   const Stopwatch runClock;
   uint64_t stepsThisRun = 0;
   Stopwatch sinceFirstStep, sinceLastStep;
@@ -248,6 +258,12 @@ void JobRunner::runSteps(Context& c) {
     sp.set_step(ls.step);
     sp.set_steps(uint64_t(p.steps));
     sp.set_loss(g->stats.loss());
+    sp.set_image_loss(imageLoss.add(g->stats.primal_loss()));
+    for (const auto& [name, values] : smallParameterValues(p.params, ls.theta)) {
+      v1::ParameterValue* pv = sp.add_parameters();
+      pv->set_name(name);
+      for (double v : values) pv->add_values(v);
+    }
     sp.set_param_error(p.groundTruthKnown() ? parameterError(p, ls.theta) : -1.0);
     sp.set_shape_error(shapeError(p, ls.theta));
     sp.set_seconds(seconds);
@@ -270,16 +286,48 @@ void JobRunner::copyLog(const std::string& id, std::vector<std::string>& files) 
 }
 
 void JobRunner::fail(Context& c, const std::string& reason) {
+  const std::vector<std::string> files = writeCheckpointResults(c);
+  book_.end(c.id, v1::FAILED, reason, &files);
+}
+
+std::string JobRunner::writeConvergence(Context& c) {
+  // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
+  const Problem& p = c.p;
+  ConvergenceCsv csv(store_.resultsDir(c.id) / "convergence.csv");
+  std::map<uint64_t, v1::StepProgress> steps;
+  for (const auto& e : store_.loadEvents(c.id))
+    if (e.has_step()) steps[e.step().step()] = e.step();
+  for (const auto& [k, sp] : steps) {
+    ConvergenceRow row;
+    row.method = gradientMethodName(p.gradient.method);
+    row.step = sp.step();
+    row.seconds = sp.seconds();
+    row.loss = sp.loss();
+    row.paramError = sp.param_error();
+    if (!p.truthMeshes.empty()) row.shapeError = sp.shape_error();
+    row.imageLoss = sp.image_loss();
+    row.stats = sp.stats();
+    csv.add(std::move(row));
+  }
+  csv.write();
+  return "convergence.csv";
+}
+
+std::vector<std::string> JobRunner::writeCheckpointResults(Context& c) {
+  // A job that stops early (failed, cancelled) keeps its last good parameters and its
+  // convergence so far, next to the log.
   std::vector<std::string> files;
-  // The last good parameters stay fetchable, next to the log.
   if (c.problemBuilt && c.haveCheckpoint && c.p.params.size() == size_t(c.ck.theta_size())) {
     try {
+      std::filesystem::create_directories(store_.resultsDir(c.id));
       files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()), *c.p.scene);
-    } catch (const std::exception&) {
+      files.push_back(writeConvergence(c));
+    } catch (const std::exception& e) {
+      spdlog::warn("[{}] cannot write its checkpoint's results: {}", c.id, e.what());
     }
   }
   copyLog(c.id, files);
-  book_.end(c.id, v1::FAILED, reason, &files);
+  return files;
 }
 
 void JobRunner::writeResults(Context& c) {
@@ -288,63 +336,50 @@ void JobRunner::writeResults(Context& c) {
   auto dir = store_.resultsDir(id);
   std::filesystem::create_directories(dir);
   std::vector<std::string> files = writeParameters(dir, p.params, c.theta, *p.scene);
-  {
-    // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
-    ConvergenceCsv csv(dir / "convergence.csv");
-    std::map<uint64_t, v1::StepProgress> steps;
-    for (const auto& e : store_.loadEvents(id))
-      if (e.has_step()) steps[e.step().step()] = e.step();
-    for (const auto& [k, sp] : steps) {
-      ConvergenceRow row;
-      row.method = gradientMethodName(p.gradient.method);
-      row.step = sp.step();
-      row.seconds = sp.seconds();
-      row.loss = sp.loss();
-      row.paramError = sp.param_error();
-      if (!p.truthMeshes.empty()) row.shapeError = sp.shape_error();
-      row.stats = sp.stats();
-      csv.add(std::move(row));
-    }
-    csv.write();
-    files.push_back("convergence.csv");
-  }
+  files.push_back(writeConvergence(c));
   // Charts are the client's: `invr fetch` and `invr run` draw convergence.png from this CSV.
-  // Final renders (and the targets beside them) from the workers.
+  // Renders from the workers: where the run started (initial_view<k>), where it ended
+  // (final_view<k>), and the targets beside them, for side-by-side comparison.
   book_.log(id, "rendering final images");
-  std::vector<std::optional<v1::Task>> tasks(p.shards.size());
-  for (size_t s = 0; s < p.shards.size(); ++s) {
-    v1::Task t = baseTask(id, s, c.theta);
-    t.set_kind(v1::Task::FINAL_RENDER);
-    t.set_final_spp(opt_.finalSpp);
-    for (int v : p.shards[s])
-      if (v < opt_.finalViews) t.add_views(v);
-    if (t.views_size() > 0) tasks[s] = std::move(t);
-  }
-  auto results = scheduler_.run(id, tasks);
-  for (size_t s = 0; s < results.size(); ++s) {
-    if (!results[s]) continue;
-    const auto& r = *results[s];
-    int nv = tasks[s]->views_size();
-    for (int k = 0; k < r.renders_size() && k < 2 * nv; ++k) {
-      bool ok = false;
-      Image im = fromWire(r.renders(k), &ok);
-      if (!ok) continue;
-      std::string stem = (k < nv ? "final_view" : "target_view") + std::to_string(tasks[s]->views(k % nv));
-      for (const char* ext : {".png", ".exr"}) {
-        writeImage(dir / (stem + ext), im);
-        files.push_back(stem + ext);
+  auto renderAt = [&](const std::vector<float>& theta, bool initial) {
+    std::vector<std::optional<v1::Task>> tasks(p.shards.size());
+    for (size_t s = 0; s < p.shards.size(); ++s) {
+      v1::Task t = baseTask(id, s, theta);
+      t.set_kind(v1::Task::FINAL_RENDER);
+      t.set_final_spp(opt_.finalSpp);
+      for (int v : p.shards[s])
+        if (v < opt_.finalViews) t.add_views(v);
+      if (t.views_size() > 0) tasks[s] = std::move(t);
+    }
+    auto results = scheduler_.run(id, tasks);
+    for (size_t s = 0; s < results.size(); ++s) {
+      if (!results[s]) continue;
+      const auto& r = *results[s];
+      int nv = tasks[s]->views_size();
+      // The initial render's task returns the targets too; they are written once, with the final renders.
+      for (int k = 0; k < r.renders_size() && k < (initial ? nv : 2 * nv); ++k) {
+        bool ok = false;
+        Image im = fromWire(r.renders(k), &ok);
+        if (!ok) continue;
+        std::string stem = (k < nv ? (initial ? "initial_view" : "final_view") : "target_view") + std::to_string(tasks[s]->views(k % nv));
+        for (const char* ext : {".png", ".exr"}) {
+          writeImage(dir / (stem + ext), im);
+          files.push_back(stem + ext);
+        }
+      }
+      // Variance-aware jobs: the per-pixel variance of one sample, as the job now samples.
+      for (int k = 0; k < r.variances_size() && k < nv && !initial; ++k) {
+        bool ok = false;
+        Image im = fromWire(r.variances(k), &ok);
+        if (!ok) continue;
+        std::string name = "variance_view" + std::to_string(tasks[s]->views(k)) + ".exr";
+        writeImage(dir / name, im);
+        files.push_back(name);
       }
     }
-    // Variance-aware jobs: the per-pixel variance of one sample, as the job now samples.
-    for (int k = 0; k < r.variances_size() && k < nv; ++k) {
-      bool ok = false;
-      Image im = fromWire(r.variances(k), &ok);
-      if (!ok) continue;
-      std::string name = "variance_view" + std::to_string(tasks[s]->views(k)) + ".exr";
-      writeImage(dir / name, im);
-      files.push_back(name);
-    }
-  }
+  };
+  renderAt(p.initial, true);
+  renderAt(c.theta, false);
   for (auto& f : writeSelectionResults(dir, p.params, *p.scene, c.theta)) files.push_back(f);
   copyLog(id, files);
   book_.end(id, v1::SUCCEEDED, "", &files);

@@ -37,6 +37,8 @@ class JobRunner {
   void runSteps(Context& c);
   void writeResults(Context& c);
   void fail(Context& c, const std::string& reason);
+  std::string writeConvergence(Context& c);               // convergence.csv from the log; its name
+  std::vector<std::string> writeCheckpointResults(Context& c);  // a failed or cancelled job's files
   void copyLog(const std::string& id, std::vector<std::string>& files);
 
   RunnerOptions opt_;

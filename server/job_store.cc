@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "proto/wire/json_lines.h"
+
 namespace invr::server {
 
 namespace v1 = invr::v1;
@@ -72,11 +74,9 @@ std::optional<v1::Checkpoint> JobStore::loadCheckpoint(const std::string& job) c
 }
 
 void JobStore::appendEvent(const std::string& job, const v1::ProgressEvent& ev) const {
-  std::string line;
-  google::protobuf::util::JsonPrintOptions o;
-  o.preserve_proto_field_names = true;
-  o.always_print_primitive_fields = true;  // zero counters too: every field is in every step
-  (void)google::protobuf::util::MessageToJsonString(ev, &line, o);
+  // Numbers as JSON numbers and non-finite ones as null (what scripts reading the fetched log
+  // expect); read back below, a null loss comes back as 0.
+  const std::string line = wire::jsonLine(ev);
   std::ofstream out(jobDir(job) / "progress.jsonl", std::ios::app);
   out << line << "\n";
 }

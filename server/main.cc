@@ -8,35 +8,39 @@
 #include <fstream>
 #include <iostream>
 
+#include "proto/wire/cli_checks.h"
+#include "invr_version.h"
 #include "proto/wire/security.h"
 #include "server/server.h"
 
 int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("invr"));  // stdout is for results (and --json)
   CLI::App app{"invr-server: accepts optimisation jobs and farms their gradient steps to invr-worker processes"};
+  app.set_version_flag("--version", "invr-server " INVR_VERSION);
   invr::server::ServerOptions o;
+  o.address = "127.0.0.1:50051";  // the address every client and worker tries by default
   std::string portFile;
   double maxAssetMb = 1024, maxJobMb = 2048;
   app.add_option("--store", o.storeDir, "job and asset store folder (kept across restarts)")->capture_default_str();
-  app.add_option("--address", o.address, "listen address; port 0 picks a free one")->capture_default_str();
+  app.add_option("--address", o.address, "listen address (a port in use is an error naming it; port 0 picks a free one)")->capture_default_str();
   app.add_option("--port-file", portFile, "write the port listened on to this file");
-  app.add_option("--max-queued", o.maxQueued, "jobs waiting beyond this are refused (RESOURCE_EXHAUSTED)")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-queued", o.maxQueued, "jobs waiting beyond this are refused (RESOURCE_EXHAUSTED)")->capture_default_str()->check(invr::wire::kPositive);
   app.add_option("--max-running-jobs", o.maxRunningJobs, "jobs that run at once, sharing the workers by priority; more wait in the queue")
       ->capture_default_str()
       ->check(CLI::Range(1, 256));
-  app.add_option("--lease-seconds", o.leaseSeconds, "a task unanswered this long is reassigned")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--heartbeat-timeout", o.heartbeatTimeoutSeconds, "a worker silent this long is presumed gone")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--max-attempts", o.maxAttempts, "attempts per shard and step before a job fails")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--lease-seconds", o.leaseSeconds, "a task unanswered this long is reassigned")->capture_default_str()->check(invr::wire::kPositive);
+  app.add_option("--heartbeat-timeout", o.heartbeatTimeoutSeconds, "a worker silent this long is presumed gone")->capture_default_str()->check(invr::wire::kPositive);
+  app.add_option("--max-attempts", o.maxAttempts, "attempts per shard and step before a job fails")->capture_default_str()->check(invr::wire::kPositive);
   app.add_option("--final-spp", o.finalSpp, "samples per pixel of the final renders written with a job's results")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(invr::wire::kPositive);
   app.add_option("--final-views", o.finalViews, "final renders are written for the first this many views (0: none)")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  app.add_option("--assign-grace", o.assignGraceSeconds, "at a job's start, seconds to wait for one worker per shard")->capture_default_str()->check(CLI::NonNegativeNumber);
-  app.add_option("--max-asset-mb", maxAssetMb, "largest upload accepted")->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(invr::wire::kNonNegative);
+  app.add_option("--assign-grace", o.assignGraceSeconds, "at a job's start, seconds to wait for one worker per shard")->capture_default_str()->check(invr::wire::kNonNegative);
+  app.add_option("--max-asset-mb", maxAssetMb, "largest upload accepted")->capture_default_str()->check(invr::wire::kPositive);
   app.add_option("--max-job-memory-mb", maxJobMb,
                  "memory one job may take (textures, meshes, targets and per-worker state); larger jobs are refused (RESOURCE_EXHAUSTED)")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(invr::wire::kPositive);
   app.add_option("--metrics-address", o.metricsAddress, "serve Prometheus metrics at http://HOST:PORT/metrics (default: none)");
   app.add_option("--health-address", o.healthAddress,
                  "also serve the gRPC health service alone, in plaintext, on HOST:PORT (for probes that cannot do TLS)");

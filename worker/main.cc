@@ -4,9 +4,12 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <atomic>
 #include <iostream>
 
+#include "proto/wire/cli_checks.h"
+#include "invr_version.h"
 #include "worker/worker.h"
 
 namespace {
@@ -17,17 +20,19 @@ void onSignal(int) { gStop = true; }
 int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("invr"));  // stdout is for results (and --json)
   CLI::App app{"invr-worker: evaluates mini-batch gradients for an invr-server"};
+  app.set_version_flag("--version", "invr-worker " INVR_VERSION);
   invr::worker::WorkerOptions o;
-  app.add_option("--server", o.server, "server address host:port")->capture_default_str();
-  app.add_option("--threads", o.threads, "render threads (0: every core)")->capture_default_str()->check(CLI::NonNegativeNumber);
+  if (const char* env = std::getenv("INVR_SERVER"); env && *env) o.server = env;
+  app.add_option("--server", o.server, "server address host:port (default: $INVR_SERVER, else 127.0.0.1:50051)");
+  app.add_option("--threads", o.threads, "render threads (0: every core)")->capture_default_str()->check(invr::wire::kNonNegative);
   app.add_option("--name", o.name, "name shown in the server's log (default host:pid)");
-  app.add_option("--max-sessions", o.maxSessions, "per-job sessions kept (least recently used evicted)")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--max-memory-mb", o.maxMemoryMb, "evict sessions while resident memory exceeds this (0: half the RAM)")->capture_default_str()->check(CLI::NonNegativeNumber);
+  app.add_option("--max-sessions", o.maxSessions, "per-job sessions kept (least recently used evicted)")->capture_default_str()->check(invr::wire::kPositive);
+  app.add_option("--max-memory-mb", o.maxMemoryMb, "evict sessions while resident memory exceeds this (0: half the RAM)")->capture_default_str()->check(invr::wire::kNonNegative);
   app.add_option("--cache", o.cacheDir, "folder for fetched assets (default: a temporary folder)");
   app.add_option("--drain-seconds", o.drainSeconds,
                  "on SIGTERM, how long the task in hand may take before it is handed back to the server")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(invr::wire::kNonNegative);
   app.add_option("--parent-pid", o.parentPid, "exit when this process exits");
   std::string tlsCa, tlsCert, tlsKey, tlsName, tokenFile;
   app.add_option("--tls-ca", tlsCa, "CA certificate (PEM) that signed the server's: connect over TLS");

@@ -50,6 +50,7 @@ int serve(WorkerOptions o, const std::atomic<bool>& stop) {
     std::filesystem::remove_all(o.cacheDir, ec);
   };
   double backoff = 0.1;
+  bool warnedUnreachable = false;
   while (!shouldStop()) {
     const bool served = connection.serve(handlers);
     if (shouldStop()) break;
@@ -60,7 +61,13 @@ int serve(WorkerOptions o, const std::atomic<bool>& stop) {
       removeCache();
       return kExitRefused;
     }
-    if (served) backoff = 0.1;
+    if (served) {
+      backoff = 0.1;
+      warnedUnreachable = false;
+    } else if (!warnedUnreachable) {  // a worker started before its server (or a wrong --server) says so once
+      spdlog::warn("worker {}: cannot reach the server at {}; retrying (every 2 s at most) until it answers", o.name, o.server);
+      warnedUnreachable = true;
+    }
     // The server went away (or never answered): sessions may belong to a server that no longer
     // exists, so drop them; a reassigned shard is rebuilt with a burn-in.
     sessions.clear();

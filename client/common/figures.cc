@@ -18,6 +18,9 @@ namespace {
 void checkOutput(const std::filesystem::path& out) {
   std::string ext = out.extension().string();
   if (ext != ".png" && ext != ".svg") throw InputError("-o: figures are .png or .svg (got '" + out.string() + "')");
+  std::error_code ec;
+  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path(), ec);
+  if (ec) throw InputError("-o: cannot create the folder '" + out.parent_path().string() + "': " + ec.message());
 }
 
 // Runs the figures script with `args` after the script; python's complaint becomes the error.

@@ -1,5 +1,5 @@
 # Figures drawn with Debian's /usr/bin/python3 and matplotlib; compiled into invr and the server.
-#   chart OUT X Y TITLE CSV...   convergence CSVs (method,step,seconds,loss,param_error,image_error[,shape_error],...):
+#   chart OUT X Y TITLE CSV...   convergence CSVs (method,step,seconds,loss,param_error,image_error[,shape_error][,image_loss],...):
 #                                one line per method and file, log-scale error axis, legend from
 #                                the method names; empty cells (unmeasured points) are skipped.
 #   grid OUT SPEC.json           images side by side: {"title", "columns": [...], "rows":
@@ -22,6 +22,7 @@ LABELS = {
     "loss": "loss",
     "image_error": "image error (relative RMSE)",
     "shape_error": "shape error (chamfer / bounding-box diagonal)",
+    "image_loss": "image loss (one render, smoothed)",
 }
 
 

@@ -1,11 +1,16 @@
 #include "client/common/job_argument.h"
 
+#include <nlohmann/json.hpp>
+
 #include <iostream>
+#include <regex>
+#include <sstream>
 
 #include "core/job/zoo_jobs.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
 #include "core/io/mitsuba_import.h"
+#include "core/limits.h"
 
 namespace invr::cli {
 
@@ -22,6 +27,61 @@ void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams) {
                     "NAME[=V[,V,V]]: recover this parameter (invr or Mitsuba name, e.g. red.reflectance.value=0.01,0.2,0.9), starting "
                     "at the values given; replaces the job's parameter list (repeatable)")
         ->allow_extra_args(false);
+  cmd->add_option("--set", a.sets,
+                  "FIELD.PATH=VALUE: set any job field, e.g. optimization.steps=50, optimization.parameters[0].learning_rate=0.05, "
+                  "render.spp=64, optimization.method=pt (repeatable; applied after the job is loaded)")
+      ->allow_extra_args(false);
+}
+
+void applySets(v1::JobSpec& job, const std::vector<std::string>& sets) {
+  if (sets.empty()) return;
+  using nlohmann::json;
+  json doc = json::parse(jobToJson(job));
+  for (const auto& set : sets) {
+    const size_t eq = set.find('=');
+    if (eq == std::string::npos || eq == 0) throw InputError("--set '" + set + "': expected FIELD.PATH=VALUE (e.g. optimization.steps=50)");
+    const std::string path = set.substr(0, eq), text = set.substr(eq + 1);
+    json value = json::parse(text, nullptr, false);
+    if (value.is_discarded()) value = text;  // a bare word: a string (an enum name, a file path)
+    // Segments: "a.b[2].c" and "a.b.2.c" both index the list b.
+    std::vector<std::string> segs;
+    std::string cur;
+    for (char c : path) {
+      if (c == '.' || c == '[' || c == ']') {
+        if (!cur.empty()) segs.push_back(cur);
+        cur.clear();
+      } else {
+        cur += c;
+      }
+    }
+    if (!cur.empty()) segs.push_back(cur);
+    if (segs.empty()) throw InputError("--set '" + set + "': no field named");
+    json* at = &doc;
+    for (size_t i = 0; i < segs.size(); ++i) {
+      const std::string& k = segs[i];
+      const bool last = i + 1 == segs.size();
+      const bool index = !k.empty() && k.find_first_not_of("0123456789") == std::string::npos;
+      if (index && at->is_array()) {
+        const size_t n = std::stoul(k);
+        if (n >= at->size())
+          throw InputError("--set '" + set + "': index " + k + " is past the end of the list (it has " + std::to_string(at->size()) + " elements)");
+        at = &(*at)[n];
+      } else {
+        if (at->is_null()) *at = json::object();
+        if (!at->is_object()) throw InputError("--set '" + set + "': '" + k + "' is inside a value that is not an object");
+        at = &(*at)[k];
+      }
+      if (last) *at = value;
+    }
+  }
+  try {
+    job = parseJobJson(doc.dump(), "--set");
+  } catch (const InputError& e) {
+    // The parser places errors at a line:column of the rewritten text, which the user never saw.
+    std::string msg = e.what();
+    static const std::regex place(R"(^--set:\d+:\d+: )");
+    rethrowWithMessage(e, std::regex_replace(msg, place, "--set: "));
+  }
 }
 
 namespace {
@@ -51,6 +111,12 @@ std::string pathRelativeTo(const fs::path& p, const fs::path& base) {
 }
 
 }  // namespace
+
+void rebaseAssetPaths(v1::JobSpec& job, const fs::path& fromDir, const fs::path& toDir) {
+  forEachAssetRef(job, [&](v1::AssetRef& ref, const std::string&) {
+    if (ref.has_path() && fs::path(ref.path()).is_relative()) ref.set_path(pathRelativeTo(fromDir / ref.path(), toDir));
+  });
+}
 
 void importMitsubaIntoJob(v1::JobSpec& job, const fs::path& baseDir, std::vector<std::string>& warnings) {
   const auto& m = job.mitsuba();
@@ -91,11 +157,18 @@ v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const
   auto defines = parseDefines(sceneArgs.defines);
   std::vector<std::string> warnings;
   v1::JobSpec job;
-  if (isJobFile(arg)) {
-    fs::path p(arg);
-    if (!fs::exists(p)) throw InputError("job file '" + arg + "': not found");
-    assets.baseDir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-    job = loadJobFile(p);
+  if (isJobFile(arg) || arg == "-") {
+    if (arg == "-") {  // the job's JSON on standard input; its relative paths from the working directory
+      std::stringstream text;
+      text << std::cin.rdbuf();
+      assets.baseDir = fs::path(".");
+      job = parseJobJson(text.str(), "<stdin>");
+    } else {
+      fs::path p(arg);
+      if (!fs::exists(p)) throw InputError("job file '" + arg + "': not found");
+      assets.baseDir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+      job = loadJobFile(p);
+    }
     if (job.has_mitsuba()) {
       if (imported) *imported = true;
       for (const auto& [k, v] : defines) (*job.mutable_mitsuba()->mutable_defaults())[k] = v;
@@ -122,6 +195,7 @@ v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets, const
     job = zooJob(arg);  // InputError listing the known names
   }
   printWarnings(warnings);
+  applySets(job, sceneArgs.sets);
   return job;
 }
 

@@ -1,6 +1,7 @@
-// The scene/job argument of render, optimize, run, submit and plan: a zoo scene name, a job file
-// (.json, whose relative asset paths resolve against its folder, and whose scene may be a Mitsuba
-// file: {"mitsuba": {"path": ...}}) or a Mitsuba 3 scene file (.xml), imported on the spot.
+// The scene/job argument of render, optimize, run, submit, plan and import: a zoo scene name, a job
+// file (.json, whose relative asset paths resolve against its folder, and whose scene may be a
+// Mitsuba file: {"mitsuba": {"path": ...}}), `-` (a job's JSON on standard input, relative paths
+// from the working directory) or a Mitsuba 3 scene file (.xml), imported on the spot.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -21,8 +22,14 @@ bool isJobFile(const std::string& arg);  // .json
 struct SceneArgs {
   std::vector<std::string> defines;  // -D name=value: Mitsuba <default> overrides
   std::vector<std::string> params;   // --param NAME[=V[,V,V]]: the parameters to recover
+  std::vector<std::string> sets;     // --set FIELD.PATH=VALUE: any job field (optimization.steps=50)
 };
 void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams);
+
+// Applies `--set` overrides: FIELD.PATH=VALUE with the job JSON's field names, list elements by
+// index (optimization.parameters[0].learning_rate=0.05 or ...parameters.0...), VALUE as JSON
+// (numbers, true, [..], {..}) or else a string. Errors are the job parser's, naming the field.
+void applySets(invr::v1::JobSpec& job, const std::vector<std::string>& sets);
 
 // Loads the job an argument names (setting assets.baseDir). A Mitsuba scene, directly or through
 // a job file, becomes an inline scene; its import warnings go to stderr.
@@ -34,6 +41,10 @@ invr::v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets,
 // the error says so. For a Mitsuba scene the optimisation takes the scene's depth, with method pt
 // where paths are longer than direct illumination.
 invr::v1::JobSpec optimizationJobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs);
+
+// Rewrites the job's relative asset paths (relative to fromDir) relative to toDir, or absolute
+// where toDir is far from them.
+void rebaseAssetPaths(invr::v1::JobSpec& job, const std::filesystem::path& fromDir, const std::filesystem::path& toDir);
 
 // Imports job.mitsuba into job.scene (asset paths relative to baseDir); render settings the job
 // leaves unset come from the scene file. Warnings are appended to `warnings`.

@@ -10,6 +10,7 @@
 #include "core/diff/gradient_stats.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
+#include "proto/wire/json_lines.h"
 #include "proto/wire/wire.h"
 
 namespace invr::cli {
@@ -110,6 +111,12 @@ v1::JobPlan ServiceClient::plan(const v1::JobSpec& job) {
   v1::PlanJobRequest req;
   *req.mutable_spec() = job;
   return unary<v1::JobPlan>(*stub_, security_, &v1::InvrService::Stub::PlanJob, req, "plan");
+}
+
+v1::SceneDescription ServiceClient::describe(const v1::JobSpec& job) {
+  v1::DescribeSceneRequest req;
+  *req.mutable_spec() = job;
+  return unary<v1::SceneDescription>(*stub_, security_, &v1::InvrService::Stub::DescribeScene, req, "params");
 }
 
 v1::JobStatus ServiceClient::get(const std::string& job) {
@@ -226,8 +233,8 @@ std::string describeEvent(const v1::ProgressEvent& e) {
     const auto& s = e.step();
     std::string err = s.param_error() >= 0 ? ("  param_error " + std::to_string(s.param_error())) : "";
     if (s.shape_error() > 0) err += "  shape_error " + std::to_string(s.shape_error());
-    std::snprintf(buf, sizeof buf, "step %llu/%llu  loss %.6g%s  %.1f s  %.2f steps/s  eta %.0f s", (unsigned long long)s.step(),
-                  (unsigned long long)s.steps(), s.loss(), err.c_str(), s.seconds(), s.steps_per_second(), s.eta_seconds());
+    std::snprintf(buf, sizeof buf, "step %llu/%llu  loss %.6g  image_loss %.6g%s  %.1f s  %.2f steps/s  eta %.0f s", (unsigned long long)s.step(),
+                  (unsigned long long)s.steps(), s.loss(), s.image_loss(), err.c_str(), s.seconds(), s.steps_per_second(), s.eta_seconds());
     std::string out = buf;
     const v1::GradientStats& st = s.stats();
     if (st.variance_term() != 0 || st.cost() != 0) {
@@ -249,13 +256,6 @@ std::string describeEvent(const v1::ProgressEvent& e) {
   return e.message();
 }
 
-std::string eventJson(const v1::ProgressEvent& e) {
-  std::string s;
-  google::protobuf::util::JsonPrintOptions o;
-  o.preserve_proto_field_names = true;
-  o.always_print_primitive_fields = true;  // zero counters too: every field is in every step
-  (void)google::protobuf::util::MessageToJsonString(e, &s, o);
-  return s;
-}
+std::string eventJson(const v1::ProgressEvent& e) { return wire::jsonLine(e); }
 
 }  // namespace invr::cli

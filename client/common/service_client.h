@@ -28,6 +28,8 @@ class ServiceClient {
   invr::v1::JobStatus get(const std::string& job);
   // The job's plan as the server sees it (validated as a submission would be; not queued).
   invr::v1::JobPlan plan(const invr::v1::JobSpec& job);
+  // The optimisable parameters of the job's scene, as the server sees it.
+  invr::v1::SceneDescription describe(const invr::v1::JobSpec& job);
   invr::v1::ListJobsResponse list();
   invr::v1::JobStatus cancel(const std::string& job);
   invr::v1::ListWorkersResponse workers();

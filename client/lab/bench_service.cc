@@ -20,6 +20,7 @@
 #include <iostream>
 #include <thread>
 
+#include "proto/wire/cli_checks.h"
 #include "client/lab/bench_report.h"
 #include "client/lab/lab_commands.h"
 #include "client/common/embedded.h"
@@ -280,7 +281,7 @@ void addBenchServiceCommand(CLI::App& bench, int& exitCode) {
                 "instead: the server alone with N workers that render nothing (canned answers of the job's size after "
                 "--fake-seconds): its CPU time per step (target <= 0.05 of the step), memory and message sizes")
       ->check(CLI::Range(1, 256));
-  c->add_option("--fake-seconds", a->fakeSeconds, "simulated compute per task of a fake worker")->capture_default_str()->check(CLI::PositiveNumber);
+  c->add_option("--fake-seconds", a->fakeSeconds, "simulated compute per task of a fake worker")->capture_default_str()->check(invr::wire::kPositive);
   c->callback([a, &exitCode] {
     run(*a);
     exitCode = 0;

@@ -15,6 +15,7 @@
 #include <mutex>
 #include <thread>
 
+#include "proto/wire/cli_checks.h"
 #include "client/lab/lab_commands.h"
 #include "invr/v1/service.grpc.pb.h"
 #include "proto/wire/wire.h"
@@ -113,7 +114,7 @@ void addBenchFakeWorkerCommand(CLI::App& bench, int& exitCode) {
                                  "--fake-workers)");
   c->group("");  // a tool of the benchmark, not a command users need
   c->add_option("--server", a->server)->capture_default_str();
-  c->add_option("--seconds", a->seconds, "simulated compute per task")->capture_default_str()->check(CLI::NonNegativeNumber);
+  c->add_option("--seconds", a->seconds, "simulated compute per task")->capture_default_str()->check(invr::wire::kNonNegative);
   c->add_option("--name", a->name)->capture_default_str();
   c->add_option("--stats-file", a->statsFile, "write 'tasks task_bytes result_bytes' of its gradient tasks here at the end");
   c->add_option("--parent-pid", a->parentPid, "exit when this process exits");

@@ -221,7 +221,9 @@ void GradientEngine::primalPass(Step& s) {
     s.restirCounters.neighboursUsed += pr.restir.neighboursUsed;
     s.restirCounters.shadingPoints += pr.restir.shadingPoints;
     s.restirCounters.sumM += pr.restir.sumM;
-    if (!req.renderOnly) imageLoss(opt_.loss, pr.image, targets_[size_t(view)], &s.adjoints[k], s.batchViews, s.weightsOf(k));
+    if (!req.renderOnly)
+      s.out.stats.set_primal_loss(s.out.stats.primal_loss() +
+                                  imageLoss(opt_.loss, pr.image, targets_[size_t(view)], &s.adjoints[k], s.batchViews, s.weightsOf(k)));
     s.out.renders.push_back(std::move(pr.image));
   }
   s.out.stats.set_pixels_traced(traced);

@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "core/geometry/edge_topology.h"
+#include "core/io/suggest.h"
 
 namespace invr {
 
@@ -28,6 +29,14 @@ int materialIndex(const Scene& scene, const std::string& name) {
     for (const auto& a : scene.materials[i].aliases)
       if (a == name) return int(i);
   return -1;
+}
+
+// "; did you mean 'red'?" from the names of a scene's materials, lights, shapes or groups.
+template <class Items, class NameOf>
+std::string closestOf(const std::string& given, const Items& items, NameOf nameOf) {
+  std::vector<std::string> names;
+  for (const auto& it : items) names.push_back(nameOf(it));
+  return didYouMean(given, names);
 }
 
 int lightIndex(const Scene& scene, const std::string& name) {
@@ -105,7 +114,7 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   slot.name = givenName;
   if (parts[0] == "materials") {
     int m = materialIndex(scene, parts[1]);
-    if (m < 0) return fail("no material named '" + parts[1] + "'");
+    if (m < 0) return fail("no material named '" + parts[1] + "'" + closestOf(parts[1], scene.materials, [](const auto& x) { return x.name; }));
     const Material& mat = scene.materials[size_t(m)];
     slot.material = m;
     const Texture* tex = nullptr;
@@ -133,7 +142,7 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
     }
   } else if (parts[0] == "lights") {
     int l = lightIndex(scene, parts[1]);
-    if (l < 0) return fail("no light named '" + parts[1] + "'");
+    if (l < 0) return fail("no light named '" + parts[1] + "'" + closestOf(parts[1], scene.lights, [](const auto& x) { return x.name; }));
     if (parts[2] != "intensity") return fail("unknown light property '" + parts[2] + "' (use intensity)");
     if (scene.lights[size_t(l)].kind == LightKind::Environment) return fail("image environment maps are not optimisable yet");
     slot.kind = ParamKind::LightIntensity;
@@ -258,12 +267,12 @@ const ParameterSlot& ParameterRegistry::addShape(const Scene& scene, const std::
   if (isGroup) {
     for (size_t g = 0; g < scene.groups.size(); ++g)
       if (scene.groups[g].name == parts[1]) slot.group = int(g);
-    if (slot.group < 0) return fail("no group named '" + parts[1] + "' (scene.groups)");
+    if (slot.group < 0) return fail("no group named '" + parts[1] + "' (scene.groups)" + closestOf(parts[1], scene.groups, [](const auto& x) { return x.name; }));
     meshes = scene.groups[size_t(slot.group)].meshes;
   } else {
     for (size_t m = 0; m < scene.meshNames.size(); ++m)
       if (scene.meshNames[m] == parts[1]) slot.shape = int(m);
-    if (slot.shape < 0) return fail("no shape named '" + parts[1] + "'");
+    if (slot.shape < 0) return fail("no shape named '" + parts[1] + "'" + closestOf(parts[1], scene.meshNames, [](const auto& x) { return x; }));
     meshes = {uint32_t(slot.shape)};
   }
   for (uint32_t m : meshes)

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/io/job_json_normalize.h"
 #include "core/limits.h"
 
 namespace invr {
@@ -55,9 +56,17 @@ std::string firstLine(const std::string& s) { return s.substr(0, s.find('\n')); 
 
 invr::v1::JobSpec parseJobJson(const std::string& json, const std::string& sourceName) {
   invr::v1::JobSpec job;
+  std::string normalized, syntaxAt;
+  JsonFieldError fieldError;
+  if (!normalizeJobJson(json, invr::v1::JobSpec::descriptor(), normalized, fieldError, syntaxAt)) {
+    if (!syntaxAt.empty()) throw InputError(sourceName + ":" + syntaxAt + ": " + fieldError.message);
+    if (fieldError.path.empty()) throw InputError(sourceName + ": " + fieldError.message);
+    const size_t at = json.find("\"" + fieldError.key + "\"");
+    throw InputError(sourceName + (at == std::string::npos ? "" : ":" + lineCol(json, at)) + ": " + fieldError.path + ": " + fieldError.message);
+  }
   google::protobuf::util::JsonParseOptions opts;
   opts.ignore_unknown_fields = false;
-  auto status = google::protobuf::util::JsonStringToMessage(json, &job, opts);
+  auto status = google::protobuf::util::JsonStringToMessage(normalized, &job, opts);
   if (!status.ok()) {
     std::string msg(status.message());
     std::string where = locate(json, msg);

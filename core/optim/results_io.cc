@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/image/image.h"
 #include "core/io/mesh_io.h"
+#include "core/math/decimal.h"
 #include "core/lights/light_selection.h"
 #include "core/scene/scene.h"
 
@@ -42,6 +43,18 @@ std::string oneLine(const Json& j) {
 }
 
 }  // namespace
+
+std::vector<std::pair<std::string, std::vector<double>>> smallParameterValues(const ParameterRegistry& params, const std::vector<float>& theta,
+                                                                               uint32_t maxValues) {
+  std::vector<std::pair<std::string, std::vector<double>>> out;
+  for (const ParameterSlot& s : params.slots()) {
+    if (s.kind == ParamKind::ShapeVertices || s.width > 0 || s.size > maxValues || s.offset + s.size > theta.size()) continue;
+    std::vector<double> v;
+    for (uint32_t k = 0; k < s.size; ++k) v.push_back(shortestDecimal(theta[s.offset + k]));
+    out.emplace_back(s.name, std::move(v));
+  }
+  return out;
+}
 
 std::vector<std::string> writeParameters(const std::filesystem::path& dir, const ParameterRegistry& params,
                                          const std::vector<float>& theta, const Scene& scene) {
@@ -187,9 +200,13 @@ void ConvergenceCsv::write() const {
     for (const auto& [c, v] : cells[i])
       if (index.emplace(c, columns.size()).second) columns.push_back(c);
   }
-  bool shapes = false;
-  for (const ConvergenceRow& r : rows_) shapes = shapes || r.shapeError >= 0;
+  bool shapes = false, imageLosses = false;
+  for (const ConvergenceRow& r : rows_) {
+    shapes = shapes || r.shapeError >= 0;
+    imageLosses = imageLosses || std::isfinite(r.imageLoss);
+  }
   std::string text = shapes ? "method,step,seconds,loss,param_error,image_error,shape_error" : "method,step,seconds,loss,param_error,image_error";
+  if (imageLosses) text += ",image_loss";
   for (const std::string& c : columns) text += "," + c;
   text += "\n";
   for (size_t i = 0; i < rows_.size(); ++i) {
@@ -197,11 +214,14 @@ void ConvergenceCsv::write() const {
     text += csvText(r.method) + "," + std::to_string(r.step) + "," + number(r.seconds) + "," + number(r.loss) + "," + number(r.paramError) + "," +
             number(r.imageError);
     if (shapes) text += "," + number(r.shapeError);
+    if (imageLosses) text += "," + number(r.imageLoss);
     std::vector<std::string> row(columns.size());
     for (const auto& [c, v] : cells[i]) row[index[c]] = v;
     for (const std::string& v : row) text += "," + v;
     text += "\n";
   }
+  std::error_code ec;
+  if (path_.has_parent_path()) std::filesystem::create_directories(path_.parent_path(), ec);
   std::ofstream out(path_);
   if (!out) throw InputError("cannot write '" + path_.string() + "'");
   out << text;

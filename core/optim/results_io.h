@@ -29,8 +29,14 @@ class Scene;
 std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir, const ParameterRegistry& params, Scene& scene,
                                                const std::vector<float>& theta);
 
+// The values of the scalar and small parameters (at most maxValues each, no textures or meshes) at
+// theta, for progress events: name and values.
+std::vector<std::pair<std::string, std::vector<double>>> smallParameterValues(const ParameterRegistry& params, const std::vector<float>& theta,
+                                                                               uint32_t maxValues = 16);
+
 // convergence.csv: one row per step (and eval's step 0), columns
 //   method, step, seconds, loss, param_error, image_error, [shape_error: jobs with vertex parameters,]
+//   [image_loss: runs that report it (smoothed one-render loss, smoothed_loss.h),]
 // then every field of the step's GradientStats (but its loss: the loss column) by its proto path
 // (seconds_primal, rays.camera, drops.primal, boundary.<term>.samples,
 // boundary.<term>.counters.<name>, ...; map entries by key), a column added when first seen. A cell is empty
@@ -46,6 +52,7 @@ struct ConvergenceRow {
   double imageError = std::numeric_limits<double>::quiet_NaN();
   std::optional<invr::v1::GradientStats> stats;
   double shapeError = std::numeric_limits<double>::quiet_NaN();  // a column only when some row has one
+  double imageLoss = std::numeric_limits<double>::quiet_NaN();   // a column only when some row has one
 };
 
 class ConvergenceCsv {

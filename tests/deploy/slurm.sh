@@ -111,10 +111,11 @@ grep -q "bearer tokens required: client API yes, worker API yes" "$ROOT/work/out
 cat "$ROOT"/work/invr-*.log
 echo "slurm: first job ok ($workers workers; results in place)"
 
-# Requeue mid-job: the batch job restarts with the same id, the server finds the job in its store
+# Requeue mid-job (without INVR_PORT: the script picks a free port, again after the requeue):
+# the batch job restarts with the same id, the server finds the job in its store
 # and resumes from the last checkpoint, and the same request id finds that job again.
 id=$(sbatch --parsable --ntasks=1 --cpus-per-task=1 --open-mode=append --output="$ROOT/work/requeue-%j.log" \
-  --export=ALL,INVR_BIN="$BIN",INVR_PORT="$(free_port)",INVR_ARGS="--steps 200 --target-spp 4" \
+  --export=ALL,INVR_BIN="$BIN",INVR_ARGS="--steps 200 --target-spp 4" \
   "$REPO/deploy/slurm/invr.sbatch" cornell "$ROOT/work/requeue")
 log="$ROOT/work/requeue-$id.log"
 for _ in $(seq 1 240); do

@@ -7,7 +7,7 @@ DIR="$(mktemp -d)"
 cleanup() { kill -9 "${SERVER:-0}" "${WORKER:-0}" 2>/dev/null || true; rm -rf "$DIR"; }
 trap cleanup EXIT
 
-"$BIN/invr-server" --store "$DIR/store" --port-file "$DIR/port" >"$DIR/server.log" 2>&1 &
+"$BIN/invr-server" --store "$DIR/store" --address 127.0.0.1:0 --port-file "$DIR/port" >"$DIR/server.log" 2>&1 &
 SERVER=$!
 for _ in $(seq 100); do [ -s "$DIR/port" ] && break; sleep 0.05; done
 ADDR="127.0.0.1:$(cat "$DIR/port")"
@@ -29,11 +29,11 @@ grep -q "step 3/3" "$DIR/watch.txt"
 grep -q "$ID JOB_STATE_SUCCEEDED\|$ID SUCCEEDED" "$DIR/watch.txt"
 # Resumed from a sequence number, as JSON: the first event is that one.
 "$BIN/invr" watch "$ID" --from 4 --json --server "$ADDR" >"$DIR/watch.json"
-head -1 "$DIR/watch.json" | grep -q '"sequence":"4"'
+head -1 "$DIR/watch.json" | grep -q '"sequence":4,'
 tail -1 "$DIR/watch.json" | grep -q '"final"'
 "$BIN/invr" status "$ID" --server "$ADDR" | grep -q "SUCCEEDED  step 3/3"
 "$BIN/invr" list --server "$ADDR" | grep -q "$ID  SUCCEEDED  cornell"
-"$BIN/invr" fetch "$ID" -o "$DIR/results" --server "$ADDR" | grep -q "wrote 8 file"
+"$BIN/invr" fetch "$ID" -o "$DIR/results" --server "$ADDR" | grep -q "wrote 10 file"
 test -s "$DIR/results/parameters.json" && test -s "$DIR/results/final_view0.exr" && test -s "$DIR/results/convergence.png"
 
 # A long job, cancelled: watch exits with 6, cancel is idempotent.

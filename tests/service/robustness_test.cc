@@ -505,8 +505,9 @@ TEST(Robustness, TheJobSpecTravelsOncePerWorkerConnectionAndAgainWhenLost) {
   ASSERT_TRUE(evs.back().has_final());
   EXPECT_EQ(evs.back().final().state(), v1::SUCCEEDED) << evs.back().final().reason();
   std::lock_guard<std::mutex> lk(mu);
-  // 2 burn-in + 6 gradient steps + final render (+ the one answered spec_unknown, sent again).
-  EXPECT_EQ(tasks, 10);
+  // 2 burn-in + 6 gradient steps + the initial and the final render (+ the one answered
+  // spec_unknown, sent again).
+  EXPECT_EQ(tasks, 11);
   EXPECT_EQ(specUnknownSent, 1);
   EXPECT_EQ(withSpec, 2);  // the first task, and the retry after spec_unknown
   // A lost spec costs no attempt: nothing failed.

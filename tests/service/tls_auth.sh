@@ -72,7 +72,7 @@ grep -q "SUCCEEDED" run.log || fail "job did not succeed: $(tail -3 run.log)"
 test -s run/parameters.json || fail "no results fetched"
 
 # 3. Mutual TLS: a client without a certificate cannot even connect; with one it can.
-"$BIN/invr-server" --store s3 --tls-cert server.pem --tls-key server.key --tls-client-ca ca.pem --port-file p3 >mtls.log 2>&1 &
+"$BIN/invr-server" --store s3 --tls-cert server.pem --tls-key server.key --tls-client-ca ca.pem --address 127.0.0.1:0 --port-file p3 >mtls.log 2>&1 &
 PIDS+=($!)
 waitport p3
 A3="127.0.0.1:$(cat p3)"

@@ -52,6 +52,31 @@ TEST(JobJson, MalformedJsonGivesLocation) {
   EXPECT_FALSE(errorOf("[1, 2]").empty());
 }
 
+TEST(JobJson, EnumsInTheirShortFormMeanTheProtoValues) {
+  auto job = parseJobJson(
+      R"({"zoo": "cornell", "render": {"estimator": "ris"}, "optimization": {"method": "Restir", "boundary": {"area_sampling": "light-points"}}})");
+  EXPECT_EQ(job.render().estimator(), v1::ESTIMATOR_RIS);
+  EXPECT_EQ(job.optimization().method(), v1::METHOD_RESTIR);
+  EXPECT_EQ(job.optimization().boundary().area_sampling(), v1::AREA_SAMPLING_LIGHT_POINTS);
+  EXPECT_EQ(parseJobJson(R"({"zoo": "cornell", "optimization": {"method": "METHOD_PT"}})").optimization().method(), v1::METHOD_PT);
+}
+
+TEST(JobJson, MistakesAreNamedInTheUsersWords) {
+  std::string e = errorOf("{\"zoo\": \"cornell\",\n \"optimization\": {\"method\": \"restri\"}}");
+  EXPECT_TRUE(contains(e, "job.json:2:")) << e;
+  EXPECT_TRUE(contains(e, "optimization.method: 'restri' is not a valid value; use one of: pt, ris, restir; did you mean 'restir'?")) << e;
+  e = errorOf(R"({"zoo": "cornell", "optimization": {"parameters": [{"name": "x", "initial": [1, 2]}]}})");
+  EXPECT_TRUE(contains(e, "optimization.parameters[0].initial: expects a single number, not a list; a list goes in 'initial_values'")) << e;
+  e = errorOf(R"({"zoo": "cornell", "optimization": {"parameters": {"name": "x"}}})");
+  EXPECT_TRUE(contains(e, "optimization.parameters: expects a list")) << e;
+  e = errorOf(R"({"zoo": "cornell", "render": {"spq": 4}})");
+  EXPECT_TRUE(contains(e, "render.spq: unknown field; did you mean 'spp'?")) << e;
+  e = errorOf("{\n  \"zoo\": \"cornell\",\n  \"render\": {\n");
+  EXPECT_TRUE(contains(e, "job.json:4:1: JSON syntax error")) << e;
+  e = errorOf(R"({"zoo": "cornell", "render": {"spp": 2e308}})");  // found by fuzz_job_json
+  EXPECT_TRUE(contains(e, "JSON number out of range")) << e;
+}
+
 TEST(JobJson, NegativeSppNamesField) {
   std::string e = errorOf(R"({"zoo": "cornell", "render": {"spp": -3}})");
   EXPECT_TRUE(contains(e, "render.spp")) << e;

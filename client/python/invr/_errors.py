@@ -1,0 +1,29 @@
+"""The errors the package raises; each says what is wrong in the user's words."""
+
+
+class InvrError(Exception):
+    """Anything invr reports as an error. `code` is the gRPC status or the CLI exit code, if any."""
+
+    def __init__(self, message, code=None):
+        super().__init__(message)
+        self.code = code
+
+
+class InputError(InvrError):
+    """The job, a file it names, a parameter name or a value is wrong (nothing was run)."""
+
+
+class ServerUnavailable(InvrError):
+    """No invr-server answers at the address (or it went away for longer than the reconnect budget)."""
+
+
+class JobFailed(InvrError):
+    """The job ended FAILED; `status` holds its final status (reason, step)."""
+
+    def __init__(self, message, status=None):
+        super().__init__(message)
+        self.status = status
+
+
+class JobCancelled(JobFailed):
+    """The job ended CANCELLED."""
