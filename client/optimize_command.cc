@@ -27,9 +27,23 @@ struct OptimizeArgs {
   std::string job;
   std::string out = "out/optimize";
   int steps = 0;
+  int snapshotEvery = 0;
   std::string method;
   SceneArgs sceneArgs;
 };
+
+// The service's snapshots (job_runner.cc), in process: renders of the first four views at the
+// final renders' 64 spp, and the parameters. The scene is written with the theta the next step
+// writes anyway, so the run's numbers do not change.
+void writeLocalSnapshot(Problem& problem, const std::vector<float>& theta, uint64_t step, const std::filesystem::path& dir) {
+  const std::string stem = "step" + std::to_string(step);
+  std::filesystem::create_directories(dir / "snapshots" / stem);
+  writeParameters(dir / "snapshots" / stem, problem.params, theta, *problem.scene);
+  problem.params.write(theta, *problem.scene);
+  const RenderOptions ro = transportRenderOptions(problem, 64, kFinalRenderStream);
+  for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v)
+    writeImage(dir / "snapshots" / (stem + "_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
+}
 
 void runOptimize(const OptimizeArgs& a) {
   AssetResolver assets;
@@ -39,6 +53,8 @@ void runOptimize(const OptimizeArgs& a) {
   if (a.method == "pt") job.mutable_optimization()->set_method(invr::v1::METHOD_PT);
   else if (a.method == "ris") job.mutable_optimization()->set_method(invr::v1::METHOD_RIS);
   else if (a.method == "restir") job.mutable_optimization()->set_method(invr::v1::METHOD_RESTIR);
+  if (a.snapshotEvery > 0) job.mutable_optimization()->set_snapshot_every(a.snapshotEvery);
+  const int snapshotEvery = job.optimization().snapshot_every();
   Problem problem = buildProblem(job, assets);
   std::filesystem::path dir(a.out);
   std::filesystem::create_directories(dir);
@@ -67,6 +83,7 @@ void runOptimize(const OptimizeArgs& a) {
       row.imageLoss = r.imageLoss;
       csv.add(std::move(row));
       if (csv.rows() % 100 == 0) csv.write();  // a long run's CSV stays current
+      if (snapshotEvery > 0 && r.theta && r.step % uint64_t(snapshotEvery) == 0) writeLocalSnapshot(problem, *r.theta, r.step, dir);
       char detail[160];
       std::snprintf(detail, sizeof detail, "step %llu/%d  loss %.4g  image_loss %.4g%s", (unsigned long long)r.step, problem.steps, r.loss,
                     r.imageLoss, r.parameterError >= 0 ? ("  param_error " + BenchReport::fmt(r.parameterError)).c_str() : "");
@@ -134,6 +151,9 @@ void addOptimizeCommands(CLI::App& app, int& exitCode) {
   cmd->add_option("job", args->job, "zoo scene name, job file (.json with an 'optimization') or Mitsuba 3 scene (.xml, with --param)")->required();
   cmd->add_option("-o,--out", args->out, "output folder")->capture_default_str();
   cmd->add_option("--steps", args->steps, "override the number of steps")->check(invr::wire::kPositive);
+  cmd->add_option("--snapshot-every", args->snapshotEvery,
+                  "every N steps, write renders of the first views and the parameters under OUT/snapshots/ (step<k>_view<v>.png, step<k>/parameters.json)")
+      ->check(invr::wire::kPositive);
   cmd->add_option("--method", args->method, "override the method")->check(CLI::IsMember({"pt", "ris", "restir"}));
   addSceneArgs(cmd, args->sceneArgs, true);
   cmd->callback([args, &exitCode] { runOptimize(*args); exitCode = 0; });

@@ -150,6 +150,7 @@ struct JobArgs {
   std::string method;
   int targetSpp = 0;
   int priority = 0, maxWorkers = -1;
+  int snapshotEvery = 0;
   SceneArgs sceneArgs;
 };
 
@@ -158,6 +159,10 @@ void addJobArgs(CLI::App* cmd, JobArgs& a) {
   cmd->add_option("--steps", a.steps, "override the number of steps")->check(invr::wire::kPositive);
   cmd->add_option("--method", a.method, "override the gradient method")->check(CLI::IsMember({"pt", "ris", "restir"}));
   cmd->add_option("--target-spp", a.targetSpp, "override the samples per pixel of rendered targets")->check(invr::wire::kPositive);
+  cmd->add_option("--snapshot-every", a.snapshotEvery,
+                  "optimization.snapshot_every: every N steps, write renders of the first views and the parameters under the "
+                  "results' snapshots/ folder (snapshots/step<k>_view<v>.png, snapshots/step<k>/parameters.json)")
+      ->check(invr::wire::kPositive);
   cmd->add_option("--priority", a.priority,
                   "scheduling.priority: the job's weight in the share of worker time among jobs running at once (1..100; default 1)")
       ->check(CLI::Range(1, 100));
@@ -173,6 +178,7 @@ v1::JobSpec loadJob(const JobArgs& a, std::filesystem::path& baseDir) {
   baseDir = assets.baseDir;
   if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
   if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
+  if (a.snapshotEvery > 0) job.mutable_optimization()->set_snapshot_every(a.snapshotEvery);
   if (a.priority > 0) job.mutable_scheduling()->set_priority(uint32_t(a.priority));
   if (a.maxWorkers >= 0) job.mutable_scheduling()->set_max_workers(uint32_t(a.maxWorkers));
   if (a.method == "pt") job.mutable_optimization()->set_method(v1::METHOD_PT);

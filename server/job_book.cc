@@ -197,6 +197,19 @@ void JobBook::stepDone(const std::string& id, const v1::StepProgress& sp, double
   publishLocked(j, std::move(ev));
 }
 
+void JobBook::addResults(const std::string& id, const std::vector<std::string>& files) {
+  std::lock_guard<std::mutex> lk(mu_);
+  Entry& j = at(id);
+  const auto& have = j.rec.results();
+  for (const auto& f : files)
+    if (std::find(have.begin(), have.end(), f) == have.end()) j.rec.add_results(f);
+  try {
+    store_.saveRecord(j.rec);
+  } catch (const std::exception& e) {
+    spdlog::error("[{}] cannot save its record: {}", j.rec.job_id(), e.what());
+  }
+}
+
 bool JobBook::cancelRequested(const std::string& id) const {
   std::lock_guard<std::mutex> lk(mu_);
   return at(id).cancelRequested;

@@ -62,6 +62,8 @@ class JobBook {
   void started(const std::string& id, uint64_t step, uint64_t steps, const std::string& method);
   void stepDone(const std::string& id, const invr::v1::StepProgress& sp, double workerSeconds, uint32_t workers);
   bool cancelRequested(const std::string& id) const;
+  // Adds files to a running job's results (snapshots), servable at once; the record is saved.
+  void addResults(const std::string& id, const std::vector<std::string>& files);
   // Ends the job (saved, final event to watchers). `results` replaces its result list.
   void end(const std::string& id, invr::v1::JobState state, const std::string& reason, const std::vector<std::string>* results = nullptr);
 

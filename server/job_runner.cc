@@ -4,9 +4,12 @@
 #include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "core/error.h"
@@ -51,6 +54,19 @@ Image fromWire(const v1::FloatImage& fi, bool* ok) {
   *ok = size_t(fi.pixels_size()) == im.data().size();
   if (*ok) std::copy(fi.pixels().begin(), fi.pixels().end(), im.data().begin());
   return im;
+}
+
+// The snapshots a run wrote so far (they survive restarts), as result names.
+std::vector<std::string> snapshotFiles(const std::filesystem::path& resultsDir) {
+  std::vector<std::string> files;
+  std::error_code ec;
+  const auto root = resultsDir / "snapshots";
+  if (!std::filesystem::is_directory(root, ec)) return files;
+  for (auto it = std::filesystem::recursive_directory_iterator(root, ec); !ec && it != std::filesystem::recursive_directory_iterator();
+       it.increment(ec))
+    if (it->is_regular_file(ec)) files.push_back(std::filesystem::relative(it->path(), resultsDir, ec).generic_string());
+  std::sort(files.begin(), files.end());
+  return files;
 }
 
 }  // namespace
@@ -272,6 +288,8 @@ void JobRunner::runSteps(Context& c) {
     sp.set_transport_seconds(std::max(0.0, wall - slowest));
     sp.set_update_seconds(updateClock.seconds());
     book_.stepDone(id, sp, scheduler_.workerSeconds(id), scheduler_.workersOf(id));
+    const int every = c.spec.optimization().snapshot_every();
+    if (every > 0 && ls.step % uint64_t(every) == 0) writeSnapshot(c, ls.step);
     if (onStep) onStep(sinceLastStep.lap());
     spdlog::info("[{} step {}] loss {:.6g} param_error {:.4g} ({:.2f} steps/s)", id, ls.step, sp.loss(), sp.param_error(),
                  sp.steps_per_second());
@@ -313,6 +331,48 @@ std::string JobRunner::writeConvergence(Context& c) {
   return "convergence.csv";
 }
 
+void JobRunner::writeSnapshot(Context& c, uint64_t step) {
+  // Written under the results folder at once and listed among the results, so a running job's
+  // snapshots can be fetched. A failure to write is logged; the run goes on.
+  const Problem& p = c.p;
+  const auto dir = store_.resultsDir(c.id) / "snapshots";
+  const std::string stem = "step" + std::to_string(step);
+  std::vector<std::string> files;
+  try {
+    std::filesystem::create_directories(dir / stem);
+    for (const auto& f : writeParameters(dir / stem, p.params, c.theta, *p.scene)) files.push_back("snapshots/" + stem + "/" + f);
+  } catch (const std::exception& e) {
+    book_.log(c.id, "snapshot at step " + std::to_string(step) + ": cannot write its parameters: " + e.what());
+  }
+  std::vector<std::optional<v1::Task>> tasks(p.shards.size());
+  for (size_t s = 0; s < p.shards.size(); ++s) {
+    v1::Task t = baseTask(c.id, s, c.theta);
+    t.set_kind(v1::Task::SNAPSHOT);
+    t.set_final_spp(opt_.finalSpp);
+    for (int v : p.shards[s])
+      if (v < opt_.finalViews) t.add_views(v);
+    if (t.views_size() > 0) tasks[s] = std::move(t);
+  }
+  auto results = scheduler_.run(c.id, tasks);
+  for (size_t s = 0; s < results.size(); ++s) {
+    if (!results[s]) continue;
+    for (int k = 0; k < results[s]->renders_size() && k < tasks[s]->views_size(); ++k) {
+      bool ok = false;
+      Image im = fromWire(results[s]->renders(k), &ok);
+      if (!ok) continue;
+      const std::string name = stem + "_view" + std::to_string(tasks[s]->views(k)) + ".png";
+      try {
+        writeImage(dir / name, im);
+        files.push_back("snapshots/" + name);
+      } catch (const std::exception& e) {
+        book_.log(c.id, "snapshot at step " + std::to_string(step) + ": " + e.what());
+      }
+    }
+  }
+  book_.addResults(c.id, files);
+  book_.log(c.id, "snapshot at step " + std::to_string(step) + ": " + std::to_string(files.size()) + " file(s) under snapshots/");
+}
+
 std::vector<std::string> JobRunner::writeCheckpointResults(Context& c) {
   // A job that stops early (failed, cancelled) keeps its last good parameters and its
   // convergence so far, next to the log.
@@ -322,6 +382,7 @@ std::vector<std::string> JobRunner::writeCheckpointResults(Context& c) {
       std::filesystem::create_directories(store_.resultsDir(c.id));
       files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()), *c.p.scene);
       files.push_back(writeConvergence(c));
+      for (auto& f : snapshotFiles(store_.resultsDir(c.id))) files.push_back(std::move(f));
     } catch (const std::exception& e) {
       spdlog::warn("[{}] cannot write its checkpoint's results: {}", c.id, e.what());
     }
@@ -381,6 +442,7 @@ void JobRunner::writeResults(Context& c) {
   renderAt(p.initial, true);
   renderAt(c.theta, false);
   for (auto& f : writeSelectionResults(dir, p.params, *p.scene, c.theta)) files.push_back(f);
+  for (auto& f : snapshotFiles(dir)) files.push_back(std::move(f));
   copyLog(id, files);
   book_.end(id, v1::SUCCEEDED, "", &files);
 }

@@ -36,6 +36,7 @@ class JobRunner {
   struct Context;
   void runSteps(Context& c);
   void writeResults(Context& c);
+  void writeSnapshot(Context& c, uint64_t step);  // renders and parameters at c.theta (snapshot_every)
   void fail(Context& c, const std::string& reason);
   std::string writeConvergence(Context& c);               // convergence.csv from the log; its name
   std::vector<std::string> writeCheckpointResults(Context& c);  // a failed or cancelled job's files

@@ -60,14 +60,16 @@ std::string checkTaskResult(const v1::Task& task, const v1::TaskResult& r, const
   if (r.input_error()) return "input_error set without an error text";
   if (!finiteNonNegative(r.seconds_session())) return "a timing is negative or not finite";
   if (std::string bad = checkStats(r.stats()); !bad.empty()) return bad;
-  if (task.kind() == v1::Task::FINAL_RENDER) {
+  if (task.kind() == v1::Task::FINAL_RENDER || task.kind() == v1::Task::SNAPSHOT) {
+    const bool snapshot = task.kind() == v1::Task::SNAPSHOT;
     if (r.gradient_size() != 0) return "a final render carries a gradient";
-    const int expected = 2 * task.views_size();  // each view's render, then its target
+    // A final render: each view's render, then its target; a snapshot: the renders alone.
+    const int expected = (snapshot ? 1 : 2) * task.views_size();
     if (r.renders_size() != expected)
       return std::to_string(r.renders_size()) + " images for " + std::to_string(task.views_size()) + " view(s) (expected " +
              std::to_string(expected) + ")";
     // Variance-aware jobs add one variance map per view.
-    if (r.variances_size() != 0 && r.variances_size() != task.views_size())
+    if (r.variances_size() != 0 && (snapshot || r.variances_size() != task.views_size()))
       return std::to_string(r.variances_size()) + " variance maps for " + std::to_string(task.views_size()) + " view(s)";
     for (int k = 0; k < r.renders_size() + r.variances_size(); ++k) {
       const v1::FloatImage& im = k < r.renders_size() ? r.renders(k) : r.variances(k - r.renders_size());

@@ -75,6 +75,23 @@ std::optional<v1::WorkerMessage> TaskRunner::execute(const v1::Task& t) {
       res.set_spec_unknown(true);
       return out;
     }
+    if (t.kind() == v1::Task::SNAPSHOT) {
+      // A snapshot leaves the sessions as they are: without the shard's session, it renders from
+      // a scene of its own, so that no session starts without its rebuild burn-in. With it, the
+      // scene gets the theta the next gradient task writes anyway (an unchanged write is a no-op).
+      std::unique_ptr<Problem> own;
+      Session* existing = sessions_.find(t.job_id(), t.shard());
+      if (!existing) own = std::make_unique<Problem>(buildProblem(*spec, assets_.resolver()));
+      Problem& p = existing ? *existing->problem : *own;
+      p.params.write(thetaOf(t, p), *p.scene);
+      RenderOptions ro = transportRenderOptions(p, std::max(1, t.final_spp()), kFinalRenderStream);
+      ro.cancel = &cancel_;
+      for (int v : t.views()) {
+        if (v < 0 || size_t(v) >= p.scene->cameras.size()) throw InputError("task: view " + std::to_string(v) + " out of range");
+        toProto(renderView(*p.scene, v, ro).image, res.add_renders());
+      }
+      return out;
+    }
     Session& s = session(t, *spec, res);
     Problem& p = *s.problem;
     const std::vector<float> theta = thetaOf(t, p);

@@ -202,7 +202,12 @@ std::optional<v1::JobStatus> ServiceClient::watch(const std::string& job, uint64
 }
 
 void ServiceClient::fetchOne(const std::string& job, const std::string& name, const std::filesystem::path& dir) {
-  std::filesystem::create_directories(dir);
+  // Result names are relative paths (snapshots/step10_view0.png); one that would leave the
+  // folder is refused, whatever the server sends.
+  const std::filesystem::path rel = std::filesystem::path(name).lexically_normal();
+  if (name.empty() || rel.is_absolute() || rel.has_root_name() || *rel.begin() == "..")
+    throw InputError("fetch: the server named a result '" + name.substr(0, 256) + "' outside the results folder");
+  std::filesystem::create_directories((dir / rel).parent_path());
   grpc::ClientContext ctx;
   wire::addToken(ctx, security_);
   v1::FetchResultRequest req;

@@ -82,8 +82,8 @@ int runFakeWorker(const FakeWorkerArgs& a) {
       continue;
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(a.seconds));
-    if (t.kind() == v1::Task::FINAL_RENDER) {
-      for (int k = 0; k < 2 * t.views_size(); ++k) {
+    if (t.kind() == v1::Task::FINAL_RENDER || t.kind() == v1::Task::SNAPSHOT) {
+      for (int k = 0; k < (t.kind() == v1::Task::SNAPSHOT ? 1 : 2) * t.views_size(); ++k) {
         v1::FloatImage* im = r->add_renders();
         im->set_width(f->second.first);
         im->set_height(f->second.second);

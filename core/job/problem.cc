@@ -205,6 +205,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   p.viewsPerStep = o.views_per_step() == 0 ? views : o.views_per_step();
   p.targetSpp = positive("target_spp", o.target_spp(), p.targetSpp, 1 << 16);
   p.seed = o.seed();
+  if (o.snapshot_every() < 0) fail("snapshot_every", "must be 0 (no snapshots) or a number of steps (got " + std::to_string(o.snapshot_every()) + ")");
   if (p.scene->width * p.scene->height <= 0) fail("scene", "empty film");
   if (o.shards() < 0 || o.shards() > views)
     fail("shards", "must be in 1.." + std::to_string(views) + " (one view per shard at most; got " + std::to_string(o.shards()) + ")");

@@ -33,6 +33,7 @@ LocalRunResult runLocally(Problem& p, const std::function<void(const StepReport&
     rep.nonFinite = droppedSamples(g->stats);
     rep.stats = g->stats;
     out.history.push_back(rep);
+    rep.theta = &loop.state().theta;
     if (onStep) onStep(rep);
   }
   out.theta = loop.state().theta;

@@ -18,6 +18,7 @@ struct StepReport {
   double shapeError = -1;  // jobs with vertex parameters (problem.h's shapeError)
   uint64_t nonFinite = 0;
   invr::v1::GradientStats stats;
+  const std::vector<float>* theta = nullptr;  // the parameters after the step; valid during the callback only
 };
 
 struct LocalRunResult {

@@ -61,11 +61,16 @@ def test_submit_watch_result(service, tmp_path):
 
 
 def test_texture_result_is_an_image(service, tmp_path):
-    job = service.client.submit("oxalis", steps=2, target_spp=2, sets={"optimization.restir.burn_in": 1})
+    job = service.client.submit("oxalis", steps=2, target_spp=2, sets={"optimization.restir.burn_in": 1}, snapshot_every=1)
     r = job.result(tmp_path / "oxalis")
     tex = r.parameters["materials/painting/albedo"]
     assert tex.shape == (64, 64, 3)
     assert np.all(np.isfinite(tex))
+    # Snapshots every step, fetched into snapshots/: the renders, and the parameters of that step.
+    assert list(r.snapshots) == [1, 2]
+    assert r.snapshots[2].images[0].shape == r.images["final_view0.exr"].shape
+    np.testing.assert_array_equal(r.snapshots[2].parameters["materials/painting/albedo"], tex)
+    assert not np.array_equal(r.snapshots[1].parameters["materials/painting/albedo"], tex)
 
 
 def test_parameters_locally_and_from_the_server(service):

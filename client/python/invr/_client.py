@@ -154,14 +154,15 @@ class Client:
                     self._upload_assets(item, where)
 
     def submit(self, job, params=None, defines=None, sets=None, steps=None, method=None, target_spp=None, seed=None,
-               priority=None, max_workers=None, request_id=None):
+               priority=None, max_workers=None, request_id=None, snapshot_every=None):
         """Submits a job and returns its Job. `job`: a dict (relative paths from the working
         directory), a job file (.json), a Mitsuba 3 scene (.xml; name what to recover with params)
         or a zoo scene name. params: names (or name -> start values) that replace the job's
         parameter list; defines: a Mitsuba scene's <default> overrides; sets: job field path ->
-        value (like --set); steps, method ("pt", "ris", "restir"), target_spp, seed: shorthands."""
+        value (like --set); steps, method ("pt", "ris", "restir"), target_spp, seed, snapshot_every:
+        shorthands (snapshot_every=N: renders and parameters every N steps, Result.snapshots)."""
         spec = self.spec(job, params=params, defines=defines, sets=sets, steps=steps, method=method, target_spp=target_spp,
-                         seed=seed)
+                         seed=seed, snapshot_every=snapshot_every)
         if priority is not None:
             spec.scheduling.priority = int(priority)
         if max_workers is not None:
@@ -285,7 +286,10 @@ class Job:
     def fetch(self, name, out):
         """Downloads one result file (a name from status()["results"]) into the folder out."""
         out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        rel = Path(os.path.normpath(name))
+        if not name or rel.is_absolute() or rel.parts[0] == "..":
+            raise InputError(f"fetch: the server named a result {name!r} outside the results folder")
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
         req = service_pb2.FetchResultRequest(job_id=self.id, name=name)
         tmp = out / (name + ".part")
         try:

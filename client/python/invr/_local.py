@@ -65,7 +65,8 @@ def _job_argument(job):
     raise InputError(f"a job is a dict, a job file (.json), a Mitsuba scene (.xml) or a zoo name; got {type(job).__name__}")
 
 
-def _override_args(params=None, defines=None, sets=None, steps=None, method=None, target_spp=None, seed=None):
+def _override_args(params=None, defines=None, sets=None, steps=None, method=None, target_spp=None, seed=None,
+                   snapshot_every=None):
     """The CLI options that carry a job's overrides."""
     args = []
     items = params.items() if isinstance(params, dict) else (params or [])
@@ -91,6 +92,8 @@ def _override_args(params=None, defines=None, sets=None, steps=None, method=None
         all_sets["optimization.target_spp"] = int(target_spp)
     if seed is not None:
         all_sets["optimization.seed"] = int(seed)
+    if snapshot_every is not None:
+        all_sets["optimization.snapshot_every"] = int(snapshot_every)
     for k, v in all_sets.items():
         text = v if isinstance(v, str) else json.dumps(v)
         args += ["--set", f"{k}={text}"]
@@ -128,7 +131,7 @@ def _absolute_paths(node, base):
 
 
 def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps=None, method=None, target_spp=None,
-        seed=None, store=None, on_event=None):
+        seed=None, store=None, on_event=None, snapshot_every=None):
     """Runs a job to its end on an embedded server with local worker processes, as `invr run` does,
     and returns its Result. `job`: a dict, a job file, a Mitsuba scene (with params=) or a zoo name.
     `on_event(event)` sees every progress event. Raises JobFailed / JobCancelled (with the results
@@ -143,7 +146,8 @@ def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps
         cmd += ["--workers", str(int(workers))]
     if store is not None:
         cmd += ["--store", str(store)]
-    cmd += _override_args(params=params, defines=defines, sets=sets, steps=steps, method=method, target_spp=target_spp, seed=seed)
+    cmd += _override_args(params=params, defines=defines, sets=sets, steps=steps, method=method, target_spp=target_spp, seed=seed,
+                          snapshot_every=snapshot_every)
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE if stdin is not None else subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if stdin is not None:

@@ -3,6 +3,7 @@ images (EXR and PNG, read with Debian's OpenImageIO bindings) and the convergenc
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +71,8 @@ class Result:
       vertex parameters the optimised mesh's vertices, N x 3; its faces in meshes[name][1])
     - images: file name -> H x W x C float32 array (final_view0.exr, target_view0.exr, ...)
     - convergence: column name -> NumPy array (step, seconds, loss, image_error, param_error, ...)
-    - files: every file name
+    - files: every file name in the folder itself
+    - snapshots: step -> Snapshot (optimization.snapshot_every), in step order
     """
 
     def __init__(self, dir):
@@ -104,6 +106,24 @@ class Result:
                     self._images[f] = read_image(p)
         return self._images
 
+    @property
+    def snapshots(self):
+        """step -> Snapshot: the renders (view -> H x W x C array) and parameters written every
+        snapshot_every steps (snapshots/step<k>_view<v>.png, snapshots/step<k>/parameters.json)."""
+        if getattr(self, "_snapshots", None) is None:
+            found = {}
+            root = self.dir / "snapshots"
+            if root.is_dir():
+                for p in root.iterdir():
+                    m = re.fullmatch(r"step(\d+)(?:_view(\d+)\.png)?", p.name)
+                    if not m:
+                        continue
+                    snap = found.setdefault(int(m.group(1)), Snapshot(int(m.group(1)), root))
+                    if m.group(2) is not None:
+                        snap._views[int(m.group(2))] = p
+            self._snapshots = dict(sorted(found.items()))
+        return self._snapshots
+
     def _parameter_files(self):
         pj = self.dir / "parameters.json"
         if not pj.exists():
@@ -112,6 +132,33 @@ class Result:
 
     def __repr__(self):
         return f"Result({str(self.dir)!r}: {len(self.parameters)} parameters, {len(self.files)} files)"
+
+
+class Snapshot:
+    """One snapshot: .step, .images (view -> float32 H x W x C, PNG in [0, 1]) and .parameters
+    (as Result.parameters), read on first use."""
+
+    def __init__(self, step, root):
+        self.step = step
+        self._root = root
+        self._views = {}
+        self._images = None
+        self._result = None
+
+    @property
+    def images(self):
+        if self._images is None:
+            self._images = {v: read_image(p) for v, p in sorted(self._views.items())}
+        return self._images
+
+    @property
+    def parameters(self):
+        if self._result is None:
+            self._result = Result(self._root / f"step{self.step}")
+        return self._result.parameters
+
+    def __repr__(self):
+        return f"Snapshot(step {self.step}: {len(self._views)} view(s))"
 
 
 def _read_csv(path):
