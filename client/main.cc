@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   invr::cli::addServiceCommands(app, exitCode);
   invr::cli::addEvalCommand(app, exitCode);
   invr::cli::addImportCommand(app, exitCode);
+  invr::cli::addExportCommand(app, exitCode);
   app.set_version_flag("--version", "invr " INVR_VERSION);
   // CLI11 answers an unknown first word with "a subcommand is required": name it instead.
   if (argc > 1 && argv[1][0] != '-') {

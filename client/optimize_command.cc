@@ -104,6 +104,16 @@ void runOptimize(const OptimizeArgs& a) {
   csv.write();
   bar.finish();
   writeParameters(dir, problem.params, result.theta, *problem.scene);
+  {
+    // The job beside its results (invr export rebuilds the scene from it), asset paths absolute.
+    invr::v1::JobSpec resolved = job;
+    forEachAssetRef(resolved, [&](invr::v1::AssetRef& ref, const std::string&) {
+      if (ref.has_path() && std::filesystem::path(ref.path()).is_relative()) ref.set_path(std::filesystem::absolute(assets.baseDir / ref.path()).string());
+    });
+    std::ofstream out(dir / "job.json");
+    out << jobToJson(resolved);
+    if (!out.flush()) throw InputError("-o: cannot write '" + (dir / "job.json").string() + "'");
+  }
   try {  // the chart is a convenience: a machine without matplotlib still gets the CSV
     // Sampling parameters and photographs have no ground truth: chart the smoothed image loss.
     const bool truth = parameterError(problem, problem.initial) >= 0;
@@ -140,7 +150,7 @@ void runOptimize(const OptimizeArgs& a) {
             << ", loss "
             << result.history.front().loss << " -> " << last.loss << ", image loss " << result.history.front().imageLoss << " -> "
             << last.imageLoss << " in " << last.seconds << " s (targets " << BenchReport::fmt(result.targetSeconds) << " s)\n"
-            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, initial/target/final renders)\n";
+            << "wrote " << std::filesystem::absolute(dir).string() << " (convergence.csv and .png, parameters.json, job.json, initial/target/final renders" << (snapshotEvery > 0 ? ", snapshots/" : "") << ")\n";
 }
 
 }  // namespace

@@ -390,7 +390,8 @@ int runJob(const RunArgs& a) {
         if (st.param_error() >= 0) std::cout << ", parameter error " << parameterError(probe, probe.initial) << " -> " << st.param_error();
         std::cout << "\n";
       }
-      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, convergence.csv and .png, initial/final/target renders, progress.jsonl)\n";
+      std::cout << "wrote " << n << " file(s) to " << where(out) << " (parameters.json, job.json, convergence.csv and .png, initial/final/target renders, progress.jsonl"
+                << (std::filesystem::exists(std::filesystem::path(out) / "snapshots") ? ", snapshots/" : "") << ")\n";
     }
   }
   service.stop();

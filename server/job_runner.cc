@@ -14,6 +14,7 @@
 
 #include "core/error.h"
 #include "core/image/image.h"
+#include "core/io/job_io.h"
 #include "core/optim/optimization_loop.h"
 #include "core/optim/results_io.h"
 #include "core/optim/smoothed_loss.h"
@@ -308,6 +309,15 @@ void JobRunner::fail(Context& c, const std::string& reason) {
   book_.end(c.id, v1::FAILED, reason, &files);
 }
 
+std::string JobRunner::writeJob(Context& c) {
+  // The job beside its results: what `invr export` rebuilds the scene from.
+  const auto path = store_.resultsDir(c.id) / "job.json";
+  std::ofstream out(path);
+  out << jobToJson(c.spec);
+  if (!out.flush()) throw InputError("cannot write '" + path.string() + "'");
+  return "job.json";
+}
+
 std::string JobRunner::writeConvergence(Context& c) {
   // The convergence CSV of the whole job, rebuilt from the log (it survives restarts).
   const Problem& p = c.p;
@@ -381,6 +391,7 @@ std::vector<std::string> JobRunner::writeCheckpointResults(Context& c) {
     try {
       std::filesystem::create_directories(store_.resultsDir(c.id));
       files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()), *c.p.scene);
+      files.push_back(writeJob(c));
       files.push_back(writeConvergence(c));
       for (auto& f : snapshotFiles(store_.resultsDir(c.id))) files.push_back(std::move(f));
     } catch (const std::exception& e) {
@@ -397,6 +408,7 @@ void JobRunner::writeResults(Context& c) {
   auto dir = store_.resultsDir(id);
   std::filesystem::create_directories(dir);
   std::vector<std::string> files = writeParameters(dir, p.params, c.theta, *p.scene);
+  files.push_back(writeJob(c));
   files.push_back(writeConvergence(c));
   // Charts are the client's: `invr fetch` and `invr run` draw convergence.png from this CSV.
   // Renders from the workers: where the run started (initial_view<k>), where it ended

@@ -38,6 +38,7 @@ class JobRunner {
   void writeResults(Context& c);
   void writeSnapshot(Context& c, uint64_t step);  // renders and parameters at c.theta (snapshot_every)
   void fail(Context& c, const std::string& reason);
+  std::string writeJob(Context& c);                       // job.json; its name
   std::string writeConvergence(Context& c);               // convergence.csv from the log; its name
   std::vector<std::string> writeCheckpointResults(Context& c);  // a failed or cancelled job's files
   void copyLog(const std::string& id, std::vector<std::string>& files);

@@ -351,9 +351,11 @@ void writePly(const std::filesystem::path& path, const TriangleMesh& mesh) {
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment written by invr\nelement vertex " + std::to_string(mesh.positions.size()) +
                        "\nproperty float x\nproperty float y\nproperty float z\n";
   if (normals) header += "property float nx\nproperty float ny\nproperty float nz\n";
+  const bool uvs = mesh.uvs.size() == mesh.positions.size() && !mesh.uvs.empty();
+  if (uvs) header += "property float u\nproperty float v\n";
   header += "element face " + std::to_string(mesh.triangleCount()) + "\nproperty list uchar uint vertex_indices\nend_header\n";
   std::string data;
-  data.reserve(mesh.positions.size() * (normals ? 24 : 12) + mesh.triangleCount() * 13);
+  data.reserve(mesh.positions.size() * ((normals ? 24 : 12) + (uvs ? 8 : 0)) + mesh.triangleCount() * 13);
   auto put = [&](auto v) {
     static_assert(std::endian::native == std::endian::little, "PLY writer assumes a little-endian host");
     data.append(reinterpret_cast<const char*>(&v), sizeof v);
@@ -362,6 +364,10 @@ void writePly(const std::filesystem::path& path, const TriangleMesh& mesh) {
     for (int c = 0; c < 3; ++c) put(mesh.positions[i][c]);
     if (normals)
       for (int c = 0; c < 3; ++c) put(mesh.normals[i][c]);
+    if (uvs) {
+      put(mesh.uvs[i].x);
+      put(mesh.uvs[i].y);
+    }
   }
   for (size_t t = 0; t < mesh.triangleCount(); ++t) {
     put(uint8_t(3));

@@ -16,7 +16,7 @@ namespace invr {
 class MemoryBudget;
 TriangleMesh loadMesh(const std::filesystem::path& path, MemoryBudget* budget = nullptr);
 
-// Writes a binary little-endian PLY: vertex x y z (and nx ny nz when the mesh has normals), face
+// Writes a binary little-endian PLY: vertex x y z (and nx ny nz, u v when the mesh has them), face
 // vertex_indices (uchar count, uint indices). Throws InputError when the file cannot be written.
 void writePly(const std::filesystem::path& path, const TriangleMesh& mesh);
 

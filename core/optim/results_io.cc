@@ -100,6 +100,53 @@ std::vector<std::string> writeParameters(const std::filesystem::path& dir, const
   return files;
 }
 
+void readParameters(const std::filesystem::path& dir, const ParameterRegistry& params, std::vector<float>& theta) {
+  const auto path = dir / "parameters.json";
+  std::ifstream in(path);
+  if (!in) throw InputError("'" + path.string() + "': cannot read it");
+  Json js;
+  try {
+    js = Json::parse(in);
+  } catch (const Json::exception& e) {
+    throw InputError("'" + path.string() + "': not JSON (" + e.what() + ")");
+  }
+  if (!js.is_object()) throw InputError("'" + path.string() + "': expected an object of parameters");
+  theta.resize(params.size());
+  for (const ParameterSlot& s : params.slots()) {
+    const std::string where = "'" + path.string() + "': parameter '" + s.name + "'";
+    if (!js.contains(s.name)) throw InputError(where + " is missing (the results are of another job?)");
+    const Json& v = js[s.name];
+    float* out = theta.data() + s.offset;
+    auto fileOf = [&](const char* key) {
+      if (!v[key].is_string()) throw InputError(where + ": '" + key + "' must name a file");
+      return dir / v[key].get<std::string>();
+    };
+    if (v.is_object() && v.contains("mesh")) {
+      const TriangleMesh mesh = loadMesh(fileOf("mesh"));
+      if (mesh.positions.size() * 3 != s.size)
+        throw InputError(where + ": its mesh has " + std::to_string(mesh.positions.size()) + " vertices, the parameter " +
+                         std::to_string(s.size / 3));
+      for (size_t i = 0; i < mesh.positions.size(); ++i)
+        for (int c = 0; c < 3; ++c) out[3 * i + size_t(c)] = mesh.positions[i][c];
+    } else if (v.is_object() && v.contains("texture")) {
+      const Image im = readImage(fileOf("texture"), false);
+      if (im.width() != s.width || im.height() != s.height)
+        throw InputError(where + ": its texture is " + std::to_string(im.width()) + "x" + std::to_string(im.height()) + ", the parameter " +
+                         std::to_string(s.width) + "x" + std::to_string(s.height));
+      for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x)
+          for (int c = 0; c < s.channels; ++c) out[size_t((y * s.width + x) * s.channels + c)] = im.at(x, y, std::min(c, im.channels() - 1));
+    } else if (v.is_array() && v.size() == s.size) {
+      for (uint32_t k = 0; k < s.size; ++k) {
+        if (!v[k].is_number()) throw InputError(where + ": value " + std::to_string(k) + " is not a number");
+        out[k] = v[k].get<float>();
+      }
+    } else {
+      throw InputError(where + ": expected " + std::to_string(s.size) + " numbers, a texture or a mesh");
+    }
+  }
+}
+
 std::vector<std::string> writeSelectionResults(const std::filesystem::path& dir, const ParameterRegistry& params, Scene& scene,
                                                const std::vector<float>& theta) {
   std::vector<std::string> files;

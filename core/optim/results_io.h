@@ -19,6 +19,10 @@ namespace invr {
 // the files written.
 std::vector<std::string> writeParameters(const std::filesystem::path& dir, const ParameterRegistry& params,
                                          const std::vector<float>& theta, const Scene& scene);
+// The inverse of writeParameters: the values of `dir`/parameters.json (textures from their EXR,
+// vertex parameters from their PLY, one vertex per parameter vertex) written into `theta`, which
+// holds one value per parameter of `params`. Errors name the file and the parameter.
+void readParameters(const std::filesystem::path& dir, const ParameterRegistry& params, std::vector<float>& theta);
 
 class Scene;
 

@@ -46,7 +46,7 @@ check() {  # job, steps, every, extra args
   # The same numbers with and without snapshots: parameters, their files, the convergence.
   for f in "$job.plain"/*.json "$job.plain"/*.exr "$job.plain"/*.ply; do
     [ -e "$f" ] || continue
-    case "$(basename "$f")" in final_view*|initial_view*|target_view*) continue ;; esac
+    case "$(basename "$f")" in final_view*|initial_view*|target_view*|job.json) continue ;; esac  # job.json names snapshot_every
     case "$f" in
       *.exr) same_pixels "$f" "$job.snap/$(basename "$f")" ;;  # EXR headers hold a time stamp
       *) cmp -s "$f" "$job.snap/$(basename "$f")" || fail "$job: $(basename "$f") differs with snapshots" ;;
@@ -61,4 +61,21 @@ check() {  # job, steps, every, extra args
 
 check oxalis 6 3 --target-spp 16
 check octagon 4 2 --target-spp 8
+
+# A running job's snapshots are results at once: fetch gets them before the job ends.
+PIDS=()
+cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null || true; done; }
+trap cleanup EXIT
+"$BIN/invr-server" --store store --address 127.0.0.1:0 --port-file port > server.log 2>&1 &
+PIDS+=($!)
+for _ in $(seq 100); do [ -s port ] && break; sleep 0.05; done
+export INVR_SERVER="127.0.0.1:$(cat port)"
+"$BIN/invr-worker" --threads 2 > worker.log 2>&1 &
+PIDS+=($!)
+ID=$("$BIN/invr" submit cornell --steps 100000 --target-spp 4 --snapshot-every 1)
+for _ in $(seq 600); do "$BIN/invr" status "$ID" --json | grep -q '"step":[2-9]' && break; sleep 0.1; done
+"$BIN/invr" fetch "$ID" -o running > fetch.log 2>&1 || fail "fetch of a running job: $(cat fetch.log)"
+[ -s running/snapshots/step1_view0.png ] && [ -s running/snapshots/step1/parameters.json ] || fail "a running job's snapshots were not fetched: $(ls -R running)"
+"$BIN/invr" cancel "$ID" > /dev/null
+echo "running job: ok"
 echo "snapshots: ok"

@@ -71,6 +71,11 @@ def test_texture_result_is_an_image(service, tmp_path):
     assert r.snapshots[2].images[0].shape == r.images["final_view0.exr"].shape
     np.testing.assert_array_equal(r.snapshots[2].parameters["materials/painting/albedo"], tex)
     assert not np.array_equal(r.snapshots[1].parameters["materials/painting/albedo"], tex)
+    # Written back as a Mitsuba scene whose painting is the recovered texture.
+    xml = r.export(tmp_path / "exported" / "scene.xml")
+    assert xml.exists() and (tmp_path / "exported" / "scene.json").exists()
+    exported = invr.read_image(tmp_path / "exported" / "textures" / "painting_reflectance.exr")
+    np.testing.assert_allclose(exported, tex, rtol=1e-6)
 
 
 def test_parameters_locally_and_from_the_server(service):

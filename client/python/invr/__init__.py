@@ -18,10 +18,10 @@ from invr._errors import InvrError, InputError, ServerUnavailable, JobFailed, Jo
 from invr._client import Client, Job, DEFAULT_ADDRESS
 from invr._events import Event
 from invr._results import Result, read_results, read_image, read_ply
-from invr._local import run, parameters, binary
+from invr._local import run, parameters, export, binary
 
 __all__ = [
-    "Client", "Job", "Event", "Result", "run", "parameters", "read_results", "read_image", "read_ply", "binary",
+    "Client", "Job", "Event", "Result", "run", "parameters", "export", "read_results", "read_image", "read_ply", "binary",
     "InvrError", "InputError", "ServerUnavailable", "JobFailed", "JobCancelled", "DEFAULT_ADDRESS",
 ]
 

@@ -193,3 +193,18 @@ def parameters(scene, defines=None):
     if proc.returncode != 0:
         raise _cli_error(proc.stderr, proc.returncode)
     return json.loads(proc.stdout)["parameters"]
+
+
+def export(results, out="export/scene.xml", assets=()):
+    """Writes a results folder (a Result or its folder) as a Mitsuba 3 scene with the optimised
+    values, as `invr export` does: out (.xml), meshes/ and textures/ beside it, and the job over
+    it (out with .json). assets: folders holding the job's uploaded meshes and textures. Returns
+    the path of the scene file; mitsuba.load_file() reads it."""
+    folder = getattr(results, "dir", results)
+    cmd = [binary(), "export", os.fspath(folder), "-o", os.fspath(out)]
+    for a in ([assets] if isinstance(assets, (str, os.PathLike)) else assets):
+        cmd += ["--assets", os.fspath(a)]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise _cli_error(proc.stderr, proc.returncode)
+    return Path(out)

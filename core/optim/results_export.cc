@@ -1,0 +1,108 @@
+#include "core/optim/results_export.h"
+
+#include <fstream>
+
+#include "core/error.h"
+#include "core/io/job_io.h"
+#include "core/job/problem.h"
+#include "core/optim/results_io.h"
+
+namespace invr {
+
+namespace fs = std::filesystem;
+namespace v1 = invr::v1;
+
+namespace {
+
+bool heldBySampling(ParamKind k) { return k == ParamKind::LightLogits || k == ParamKind::PixelLightLogits || k == ParamKind::Survival; }
+
+// The exported job: the same optimisation over the exported scene.
+v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vector<float>& theta, const fs::path& resultsDir,
+                        const fs::path& xml, const std::vector<std::pair<std::string, std::string>>& renamed,
+                        std::vector<std::string>& notes) {
+  v1::JobSpec out = job;
+  out.mutable_mitsuba()->set_path(xml.filename().string());  // replaces the zoo name or inline scene
+  if (!job.has_optimization()) return out;
+  v1::OptimizationSpec& o = *out.mutable_optimization();
+  o.clear_parameters();
+  const auto& slots = p.params.slots();
+  for (int i = 0; i < job.optimization().parameters_size() && size_t(i) < slots.size(); ++i) {
+    const ParameterSlot& s = slots[size_t(i)];
+    v1::ParameterSpec ps = job.optimization().parameters(i);
+    if (s.group >= 0) {
+      notes.push_back("parameter '" + ps.name() + "' moves a group of shapes, which a Mitsuba scene cannot hold: left out of the job");
+      continue;
+    }
+    std::string name = s.name;  // the scene's own names (a Mitsuba alias may not survive the export)
+    for (const auto& [from, to] : renamed)
+      if (name.rfind(from, 0) == 0) name = to + name.substr(from.size());
+    ps.set_name(name);
+    ps.clear_initial();
+    ps.clear_initial_values();
+    ps.clear_initial_mesh();
+    if (heldBySampling(s.kind))  // not part of the scene: the job carries them
+      for (uint32_t k = 0; k < s.size; ++k) ps.add_initial_values(double(theta[s.offset + k]));
+    *o.add_parameters() = std::move(ps);
+  }
+  if (job.optimization().targets_size() > 0) {
+    o.clear_targets();
+    o.clear_target_masks();
+    notes.push_back("the job's target images are not among its results: give them again as optimization.targets to optimise further");
+  } else {
+    // Rendered targets: the results hold them for the first views. With all of them, the job
+    // goes on against the same images; otherwise it would render new targets from the
+    // optimised scene.
+    const size_t views = p.scene->cameras.size();
+    bool all = true;
+    for (size_t v = 0; v < views; ++v) all = all && fs::exists(resultsDir / ("target_view" + std::to_string(v) + ".exr"));
+    if (all) {
+      const fs::path dir = xml.has_parent_path() ? xml.parent_path() : fs::path(".");
+      fs::create_directories(dir / "targets");
+      for (size_t v = 0; v < views; ++v) {
+        const std::string name = "targets/target_view" + std::to_string(v) + ".exr";
+        fs::copy_file(resultsDir / ("target_view" + std::to_string(v) + ".exr"), dir / name, fs::copy_options::overwrite_existing);
+        o.add_targets()->set_path(name);
+      }
+    } else {
+      notes.push_back("the results hold target images for " + std::string(views > 4 ? "the first views" : "no view") +
+                      " only: the job renders its targets from the optimised scene; give optimization.targets to optimise further");
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+ResultsExport exportResults(const fs::path& resultsDir, const fs::path& xml, const AssetResolver& assets) {
+  if (!fs::is_directory(resultsDir)) throw InputError("'" + resultsDir.string() + "': not a results folder");
+  const fs::path jobFile = resultsDir / "job.json";
+  if (!fs::exists(jobFile))
+    throw InputError("'" + resultsDir.string() + "' has no job.json (results of invr run, fetch and optimize have it since 0.9.0)");
+  const v1::JobSpec job = loadJobFile(jobFile);
+  if (job.has_mitsuba()) throw InputError("'" + jobFile.string() + "': its scene is still a Mitsuba file reference; expected the imported scene");
+  // The scene is what is exported: the targets are not needed to build it.
+  v1::JobSpec buildable = job;
+  buildable.mutable_optimization()->clear_targets();
+  buildable.mutable_optimization()->clear_target_masks();
+  Problem p = buildProblem(buildable, assets);  // with a BVH: writing shape motion refits it
+  std::vector<float> theta = p.initial;
+  readParameters(resultsDir, p.params, theta);
+  p.params.write(theta, *p.scene);
+  MitsubaExportOptions mo;
+  mo.spp = job.render().spp() > 0 ? job.render().spp() : 16;
+  mo.maxDepth = std::max(1, p.gradient.maxDepth);
+  mo.russianRouletteDepth = p.gradient.russianRouletteDepth;
+  ResultsExport out;
+  out.scene = exportMitsubaScene(*p.scene, xml, mo);
+  out.notes = out.scene.notes;
+  const v1::JobSpec exported = exportedJob(job, p, theta, resultsDir, xml, out.scene.renamed, out.notes);
+  out.job = xml;
+  out.job.replace_extension(".json");
+  std::ofstream f(out.job);
+  if (!f) throw InputError("cannot write '" + out.job.string() + "'");
+  f << jobToJson(exported);
+  if (!f.flush()) throw InputError("cannot write '" + out.job.string() + "'");
+  return out;
+}
+
+}  // namespace invr

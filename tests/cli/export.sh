@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# invr export (issue 43, item 8): a run's results written as a Mitsuba 3 scene with the optimised
+# values (meshes as PLY, textures as EXR, transforms applied) and a job file over it; read back
+# with `invr import`, and rendered equal to the run's final render up to Monte Carlo noise.
+# usage: export.sh BIN_DIR WORK_DIR REPO_DIR
+set -euo pipefail
+BIN="$1"
+DIR="$2"
+REPO="$3"
+rm -rf "$DIR"
+mkdir -p "$DIR"
+cd "$DIR"
+fail() { echo "export: FAILED: $*"; exit 1; }
+PY=/usr/bin/python3
+
+# A texture under spot lights, three steps.
+"$BIN/invr" run oxalis --steps 3 --target-spp 8 --workers 2 -o run > run.log 2>&1 || fail "run: $(tail -3 run.log)"
+[ -s run/job.json ] || fail "the results have no job.json"
+"$BIN/invr" export run -o exp/scene.xml > export.log 2> export.err || fail "export: $(cat export.err)"
+grep -q "wrote .*scene.xml" export.log || fail "export said: $(cat export.log)"
+[ -s exp/scene.json ] || fail "no job file beside the scene"
+ls exp/meshes/*.ply > /dev/null || fail "no meshes written"
+ls exp/textures/*.exr > /dev/null || fail "no textures written"
+# Read back as any Mitsuba scene.
+"$BIN/invr" import exp/scene.xml -o exp/imported.json > import.log 2>&1 || fail "import: $(cat import.log)"
+
+# The exported scene's render against the run's final render (64 spp, the job's transport):
+# independent estimates of the same image, so their squared difference over 8x8-pixel blocks is
+# about the noise, which two renders of the exported scene with different seeds measure. A wrong
+# value, texture orientation or light would add its bias on top.
+for s in 1 2; do
+  "$BIN/invr" render --scene exp/scene.xml --spp 64 --seed "$s" -o "b$s.exr" > /dev/null 2>&1 || fail "render of the exported scene"
+done
+$PY - run/final_view0.exr b1.exr b2.exr <<'PYEOF' || fail "the exported scene does not render like the final render"
+import sys, numpy as np, OpenImageIO as oiio
+a, b1, b2 = (oiio.ImageBuf(p).get_pixels(oiio.FLOAT)[..., :3] for p in sys.argv[1:])
+def blocks(x):
+    h, w = x.shape[0] // 8 * 8, x.shape[1] // 8 * 8
+    return x[:h, :w].reshape(h // 8, 8, w // 8, 8, 3).mean(axis=(1, 3))
+a, b1, b2 = blocks(a), blocks(b1), blocks(b2)
+err, noise = np.mean((a - b1) ** 2), np.mean((b1 - b2) ** 2)
+print(f"final vs exported: {err:.3e}; exported vs itself: {noise:.3e}; ratio {err / noise:.2f}; means {a.mean():.4f} {b1.mean():.4f}")
+assert err < 2.0 * noise, "difference beyond the noise"
+# And the image's mean, to its standard error (a few per cent of a value or a light shows here).
+se = np.std(b1 - b2) / np.sqrt(b1.size)
+assert abs(a.mean() - b1.mean()) < 4 * se, f"means differ by {abs(a.mean() - b1.mean()):.4f}, standard error {se:.4f}"
+PYEOF
+
+# The job over it runs (its targets are the run's target images).
+grep -q '"mitsuba"' exp/scene.json || fail "the job does not name the scene"
+grep -q 'target_view0.exr' exp/scene.json || fail "the job does not carry the run's targets"
+"$BIN/invr" run exp/scene.json --steps 1 --workers 2 -o again > again.log 2>&1 || fail "the exported job does not run: $(tail -3 again.log)"
+
+# A Mitsuba scene with meshes of its own: the service knew them by content hash, so export asks
+# for their folder, then finds them there.
+"$BIN/invr" run "$REPO/docs/examples/mitsuba/cornell-optimize.json" -D res=32 -D max_depth=3 --steps 2 --target-spp 8 --workers 2 \
+  -o run2 > run2.log 2>&1 || fail "run of the Mitsuba job: $(tail -3 run2.log)"
+if "$BIN/invr" export run2 -o exp2/scene.xml > /dev/null 2> export2.err; then fail "export found uploaded meshes without --assets"; fi
+grep -q "\-\-assets" export2.err || fail "the error does not say --assets: $(cat export2.err)"
+"$BIN/invr" export run2 -o exp2/scene.xml --assets "$REPO/docs/examples/mitsuba" > /dev/null 2> export2.err || fail "export with --assets: $(cat export2.err)"
+"$BIN/invr" render --scene exp2/scene.xml --spp 4 -o c.exr > /dev/null 2>&1 || fail "render of the exported Mitsuba scene"
+echo "export: ok"
