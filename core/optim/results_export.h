@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "core/io/mitsuba_export.h"
+#include "core/scene/mitsuba_export.h"
 #include "core/scene/scene_builder.h"
 
 namespace invr {

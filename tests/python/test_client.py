@@ -72,7 +72,7 @@ def test_texture_result_is_an_image(service, tmp_path):
     np.testing.assert_array_equal(r.snapshots[2].parameters["materials/painting/albedo"], tex)
     assert not np.array_equal(r.snapshots[1].parameters["materials/painting/albedo"], tex)
     # Written back as a Mitsuba scene whose painting is the recovered texture.
-    xml = r.export(tmp_path / "exported" / "scene.xml")
+    xml = invr.export(r, tmp_path / "exported" / "scene.xml")
     assert xml.exists() and (tmp_path / "exported" / "scene.json").exists()
     exported = invr.read_image(tmp_path / "exported" / "textures" / "painting_reflectance.exr")
     np.testing.assert_allclose(exported, tex, rtol=1e-6)

@@ -124,11 +124,6 @@ class Result:
             self._snapshots = dict(sorted(found.items()))
         return self._snapshots
 
-    def export(self, out="export/scene.xml", assets=()):
-        """This result as a Mitsuba 3 scene with the optimised values (invr.export)."""
-        from invr._local import export
-        return export(self, out, assets)
-
     def _parameter_files(self):
         pj = self.dir / "parameters.json"
         if not pj.exists():

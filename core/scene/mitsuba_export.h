@@ -1,7 +1,7 @@
 // A scene as it is now (parameters written in, shape motion applied) written out as a Mitsuba 3
 // scene file: every mesh as a world-space PLY, image textures and environment maps as EXR.
 // The inverse of mitsuba_import.h on what invr renders: importing the file gives back the same
-// image (tests/core/io/mitsuba_export_test.cc). docs/mitsuba-import.md, "Export".
+// image (tests/core/optim/results_export_test.cc). docs/mitsuba-import.md, "Export".
 #pragma once
 
 #include <filesystem>

@@ -1,4 +1,4 @@
-#include "core/io/mitsuba_export.h"
+#include "core/scene/mitsuba_export.h"
 
 #include <algorithm>
 #include <cctype>
