@@ -126,6 +126,7 @@ void runOptimize(const OptimizeArgs& a) {
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {
     writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
     writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);
+    writeImage(dir / ("target_view" + std::to_string(v) + ".exr"), result.targets[v]);  // exact (invr export takes them)
   }
   // Where the run started, for side-by-side comparison (the scene goes back to the result after).
   problem.params.write(problem.initial, *problem.scene);

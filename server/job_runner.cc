@@ -363,7 +363,12 @@ void JobRunner::writeSnapshot(Context& c, uint64_t step) {
       if (v < opt_.finalViews) t.add_views(v);
     if (t.views_size() > 0) tasks[s] = std::move(t);
   }
-  auto results = scheduler_.run(c.id, tasks);
+  std::vector<std::optional<v1::TaskResult>> results;
+  try {
+    results = scheduler_.run(c.id, tasks);
+  } catch (const JobFailed& f) {  // the renders failed (a worker's error, expired leases): the run goes on
+    book_.log(c.id, "snapshot at step " + std::to_string(step) + ": no renders (" + f.reason + ")");
+  }
   for (size_t s = 0; s < results.size(); ++s) {
     if (!results[s]) continue;
     for (int k = 0; k < results[s]->renders_size() && k < tasks[s]->views_size(); ++k) {
@@ -393,11 +398,11 @@ std::vector<std::string> JobRunner::writeCheckpointResults(Context& c) {
       files = writeParameters(store_.resultsDir(c.id), c.p.params, std::vector<float>(c.ck.theta().begin(), c.ck.theta().end()), *c.p.scene);
       files.push_back(writeJob(c));
       files.push_back(writeConvergence(c));
-      for (auto& f : snapshotFiles(store_.resultsDir(c.id))) files.push_back(std::move(f));
     } catch (const std::exception& e) {
       spdlog::warn("[{}] cannot write its checkpoint's results: {}", c.id, e.what());
     }
   }
+  for (auto& f : snapshotFiles(store_.resultsDir(c.id))) files.push_back(std::move(f));
   copyLog(c.id, files);
   return files;
 }

@@ -75,6 +75,8 @@ std::optional<v1::WorkerMessage> TaskRunner::execute(const v1::Task& t) {
       res.set_spec_unknown(true);
       return out;
     }
+    if (t.kind() != v1::Task::GRADIENT && t.kind() != v1::Task::FINAL_RENDER && t.kind() != v1::Task::SNAPSHOT)
+      throw InputError("task kind " + std::to_string(int(t.kind())) + " is not known to this worker: run workers of the server's version");
     if (t.kind() == v1::Task::SNAPSHOT) {
       // A snapshot leaves the sessions as they are: without the shard's session, it renders from
       // a scene of its own, so that no session starts without its rebuild burn-in. With it, the

@@ -205,7 +205,7 @@ void ServiceClient::fetchOne(const std::string& job, const std::string& name, co
   // Result names are relative paths (snapshots/step10_view0.png); one that would leave the
   // folder is refused, whatever the server sends.
   const std::filesystem::path rel = std::filesystem::path(name).lexically_normal();
-  if (name.empty() || rel.is_absolute() || rel.has_root_name() || *rel.begin() == "..")
+  if (name.empty() || rel.empty() || rel == "." || rel.is_absolute() || rel.has_root_name() || *rel.begin() == ".." || !rel.has_filename())
     throw InputError("fetch: the server named a result '" + name.substr(0, 256) + "' outside the results folder");
   std::filesystem::create_directories((dir / rel).parent_path());
   grpc::ClientContext ctx;
@@ -214,7 +214,7 @@ void ServiceClient::fetchOne(const std::string& job, const std::string& name, co
   req.set_job_id(job);
   req.set_name(name);
   auto reader = stub_->FetchResult(&ctx, req);
-  std::filesystem::path tmp = dir / (name + ".part");
+  std::filesystem::path tmp = dir / (rel.string() + ".part");
   {
     std::ofstream out(tmp, std::ios::binary);
     if (!out) throw InputError("-o: cannot write to '" + dir.string() + "'");
@@ -222,7 +222,7 @@ void ServiceClient::fetchOne(const std::string& job, const std::string& name, co
     while (reader->Read(&c)) out.write(c.data().data(), std::streamsize(c.data().size()));
   }
   throwIfFailed(reader->Finish(), "fetch " + name);
-  std::filesystem::rename(tmp, dir / name);
+  std::filesystem::rename(tmp, dir / rel);
 }
 
 int ServiceClient::fetchAll(const std::string& job, const std::filesystem::path& dir) {

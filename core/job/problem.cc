@@ -206,6 +206,12 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   p.targetSpp = positive("target_spp", o.target_spp(), p.targetSpp, 1 << 16);
   p.seed = o.seed();
   if (o.snapshot_every() < 0) fail("snapshot_every", "must be 0 (no snapshots) or a number of steps (got " + std::to_string(o.snapshot_every()) + ")");
+  // Each snapshot adds files to the job's result list, which every status answer carries.
+  constexpr int kMaxSnapshots = 1000;
+  if (o.snapshot_every() > 0 && p.steps / o.snapshot_every() > kMaxSnapshots)
+    fail("snapshot_every", "at most " + std::to_string(kMaxSnapshots) + " snapshots per job: with " + std::to_string(p.steps) +
+                               " steps, snapshot every " + std::to_string((p.steps + kMaxSnapshots - 1) / kMaxSnapshots) +
+                               " steps or more (got " + std::to_string(o.snapshot_every()) + ")");
   if (p.scene->width * p.scene->height <= 0) fail("scene", "empty film");
   if (o.shards() < 0 || o.shards() > views)
     fail("shards", "must be in 1.." + std::to_string(views) + " (one view per shard at most; got " + std::to_string(o.shards()) + ")");

@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include "core/io/job_io.h"
+#include "core/diff/parameters.h"
 #include "core/job/problem.h"
 #include "core/optim/results_io.h"
 
@@ -33,7 +34,8 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
       notes.push_back("parameter '" + ps.name() + "' moves a group of shapes, which a Mitsuba scene cannot hold: left out of the job");
       continue;
     }
-    std::string name = s.name;  // the scene's own names (a Mitsuba alias may not survive the export)
+    // The scene's own names: a Mitsuba key or alias as given (s.name) may not survive the export.
+    std::string name = invrParameterName(*p.scene, s.name);
     for (const auto& [from, to] : renamed)
       if (name.rfind(from, 0) == 0) name = to + name.substr(from.size());
     ps.set_name(name);
@@ -64,8 +66,8 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
         o.add_targets()->set_path(name);
       }
     } else {
-      notes.push_back("the results hold target images for " + std::string(views > 4 ? "the first views" : "no view") +
-                      " only: the job renders its targets from the optimised scene; give optimization.targets to optimise further");
+      notes.push_back("the results do not hold a target image (target_view<k>.exr) for each of the " + std::to_string(views) +
+                      " views: the job renders its targets from the optimised scene; give optimization.targets to optimise further");
     }
   }
   return out;

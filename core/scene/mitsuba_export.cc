@@ -254,7 +254,8 @@ class Writer {
       case LightKind::Spot: {
         Vec3 up = std::abs(l.direction.y) < 0.9f ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
         const double outer = std::acos(std::clamp(double(l.cosOuter), -1.0, 1.0)) * 180.0 / kPiD;
-        const double inner = std::acos(std::clamp(double(l.cosInner), -1.0, 1.0)) * 180.0 / kPiD;
+        double inner = std::acos(std::clamp(double(l.cosInner), -1.0, 1.0)) * 180.0 / kPiD;
+        if (inner > outer - 1e-3) inner = outer;  // a hard edge (the builder keeps the cosines a hair apart)
         x << "  <emitter type=\"spot\" id=\"" << id << "\">\n"
           << "    <transform name=\"to_world\">\n"
           << "      <lookat origin=\"" << triple(l.position) << "\" target=\"" << triple(l.position + l.direction) << "\" up=\"" << triple(up)

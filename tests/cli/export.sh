@@ -51,12 +51,17 @@ grep -q '"mitsuba"' exp/scene.json || fail "the job does not name the scene"
 grep -q 'target_view0.exr' exp/scene.json || fail "the job does not carry the run's targets"
 "$BIN/invr" run exp/scene.json --steps 1 --workers 2 -o again > again.log 2>&1 || fail "the exported job does not run: $(tail -3 again.log)"
 
-# A Mitsuba scene with meshes of its own: the service knew them by content hash, so export asks
-# for their folder, then finds them there.
+# A Mitsuba scene with meshes of its own, its parameters in Mitsuba's names (the light is named
+# after its shape, whose id the export must change): the service knew the meshes by content hash,
+# so export asks for their folder, then finds them there; the job file names what it optimises
+# in the exported scene's names.
 "$BIN/invr" run "$REPO/docs/examples/mitsuba/cornell-optimize.json" -D res=32 -D max_depth=3 --steps 2 --target-spp 8 --workers 2 \
+  --param red.reflectance.value=0.01,0.2,0.9 --param light.emitter.radiance.value \
   -o run2 > run2.log 2>&1 || fail "run of the Mitsuba job: $(tail -3 run2.log)"
 if "$BIN/invr" export run2 -o exp2/scene.xml > /dev/null 2> export2.err; then fail "export found uploaded meshes without --assets"; fi
 grep -q "\-\-assets" export2.err || fail "the error does not say --assets: $(cat export2.err)"
 "$BIN/invr" export run2 -o exp2/scene.xml --assets "$REPO/docs/examples/mitsuba" > /dev/null 2> export2.err || fail "export with --assets: $(cat export2.err)"
 "$BIN/invr" render --scene exp2/scene.xml --spp 4 -o c.exr > /dev/null 2>&1 || fail "render of the exported Mitsuba scene"
+"$BIN/invr" plan exp2/scene.json > plan2.log 2>&1 || fail "the exported Mitsuba job does not load: $(cat plan2.log)"
+grep -q '"lights/light/intensity"' exp2/scene.json || fail "the job does not name the light in the exported scene's names"
 echo "export: ok"

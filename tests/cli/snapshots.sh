@@ -62,6 +62,10 @@ check() {  # job, steps, every, extra args
 check oxalis 6 3 --target-spp 16
 check octagon 4 2 --target-spp 8
 
+# A bound on their number, named in the user's words.
+if "$BIN/invr" plan cornell --steps 5000 --snapshot-every 1 > many.log 2>&1; then fail "5000 snapshots accepted"; fi
+grep -q "at most 1000 snapshots per job: with 5000 steps, snapshot every 5 steps or more" many.log || fail "the bound is not explained: $(cat many.log)"
+
 # A running job's snapshots are results at once: fetch gets them before the job ends.
 PIDS=()
 cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null || true; done; }
@@ -72,7 +76,7 @@ for _ in $(seq 100); do [ -s port ] && break; sleep 0.05; done
 export INVR_SERVER="127.0.0.1:$(cat port)"
 "$BIN/invr-worker" --threads 2 > worker.log 2>&1 &
 PIDS+=($!)
-ID=$("$BIN/invr" submit cornell --steps 100000 --target-spp 4 --snapshot-every 1)
+ID=$("$BIN/invr" submit cornell --steps 1000 --target-spp 4 --snapshot-every 1)
 for _ in $(seq 600); do "$BIN/invr" status "$ID" --json | grep -q '"step":[2-9]' && break; sleep 0.1; done
 "$BIN/invr" fetch "$ID" -o running > fetch.log 2>&1 || fail "fetch of a running job: $(cat fetch.log)"
 [ -s running/snapshots/step1_view0.png ] && [ -s running/snapshots/step1/parameters.json ] || fail "a running job's snapshots were not fetched: $(ls -R running)"

@@ -286,12 +286,12 @@ class Job:
     def fetch(self, name, out):
         """Downloads one result file (a name from status()["results"]) into the folder out."""
         out = Path(out)
-        rel = Path(os.path.normpath(name))
-        if not name or rel.is_absolute() or rel.parts[0] == "..":
+        rel = Path(os.path.normpath(name)) if name else Path(".")
+        if rel.is_absolute() or not rel.parts or rel.parts[0] in ("..", "."):
             raise InputError(f"fetch: the server named a result {name!r} outside the results folder")
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         req = service_pb2.FetchResultRequest(job_id=self.id, name=name)
-        tmp = out / (name + ".part")
+        tmp = out / (str(rel) + ".part")
         try:
             with open(tmp, "wb") as f:
                 for chunk in self.client._stub.FetchResult(req, metadata=self.client._metadata):
@@ -299,8 +299,8 @@ class Job:
         except grpc.RpcError as e:
             tmp.unlink(missing_ok=True)
             raise self.client._error(e, f"fetch {name}") from None
-        tmp.replace(out / name)
-        return out / name
+        tmp.replace(out / rel)
+        return out / rel
 
     def result(self, out=None, wait=True):
         """Downloads every result file into out (default: a new temporary folder) and returns the
