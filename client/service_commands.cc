@@ -320,6 +320,7 @@ struct RunArgs : JobArgs {
   int workers = 0;
   bool json = false;
   bool verbose = false;
+  std::string httpAddress;
 };
 
 int runJob(const RunArgs& a) {
@@ -327,6 +328,8 @@ int runJob(const RunArgs& a) {
   std::filesystem::path baseDir;
   v1::JobSpec job = loadJob(a, baseDir);
   std::filesystem::path out(a.out);
+  if (!a.server.empty() && !a.httpAddress.empty())
+    throw InputError("--http-address is the embedded server's dashboard; a running server has its own (invr-server --http-address)");
   if (!a.server.empty()) {  // against a running server: submit, watch, fetch
     ServiceClient c = connect(a.server);
     c.uploadAssets(job, baseDir);
@@ -360,7 +363,7 @@ int runJob(const RunArgs& a) {
   } removeStore{tempStore ? store : std::filesystem::path()};
   // Worker trouble reaches the user as progress events; the log is for --verbose.
   if (!a.verbose) spdlog::set_level(spdlog::level::err);
-  EmbeddedService service(store, workers, threads);
+  EmbeddedService service(store, workers, threads, a.httpAddress);
   ServiceClient& c = service.client();
   c.uploadAssets(job, baseDir);
   // The request id is the job's content: with a kept --store, running the same job again
@@ -378,6 +381,7 @@ int runJob(const RunArgs& a) {
   if (!a.json)
     std::cout << "invr run: " << job.name() << " as " << r.job_id() << (r.existing() ? " (resumed)" : "") << " on an embedded server with "
               << workers << " local worker(s) x " << threads << " thread(s)\n";
+  if (!a.json && !service.dashboardUrl().empty()) std::cout << "invr run: dashboard at " << service.dashboardUrl() << "\n";
   int code = watchToEnd(c, r.job_id(), 0, a.json,
                         tempStore ? "the embedded server stops with this command (use --store DIR to keep and resume jobs)"
                                   : "the job resumes when you run the same command again");
@@ -411,6 +415,8 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   r->add_option("--store", run->store, "keep the embedded server's job store here (an interrupted run resumes)");
   r->add_flag("--json", run->json, "one JSON object per progress event on stdout");
   r->add_flag("-v,--verbose", run->verbose, "the embedded server's log on stderr");
+  r->add_option("--http-address", run->httpAddress,
+                "embedded: the server's dashboard at http://HOST:PORT/ while the job runs (a port alone: 127.0.0.1; docs/dashboard.md)");
   r->callback([run, &exitCode] { exitCode = runJob(*run); });
 
   auto serverOpt = [](CLI::App* cmd, std::string& s) {
@@ -474,6 +480,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
       std::cout << "  " << s.seconds() << " s";
       std::cout << "  priority " << s.priority() << "  worker time " << s.worker_seconds() << " s";
       if (s.state() == v1::RUNNING) std::cout << " on " << s.workers() << " worker(s)";
+      if (!s.submitted_by().empty()) std::cout << "  submitted by " << s.submitted_by();
       if (!s.reason().empty()) std::cout << "\n  reason: " << s.reason();
       std::cout << "\n";
     }
@@ -494,7 +501,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
     }
     for (const auto& j : all.jobs())
       std::cout << j.job_id() << "  " << v1::JobState_Name(j.state()) << "  " << j.name() << "  step " << j.step() << "/" << j.steps()
-                << "  priority " << j.priority() << "\n";
+                << "  priority " << j.priority() << (j.submitted_by().empty() ? "" : "  by " + j.submitted_by()) << "\n";
     exitCode = exit_code::kOk;
   });
 

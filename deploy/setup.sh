@@ -5,7 +5,9 @@
 # Slurm and munge for the real-Slurm test of deploy/slurm/invr.sbatch; openssl makes the TLS
 # test's certificates; iproute2 gives `ip netns` for the multi-host test; Node.js, npm and kubectl
 # render and validate the Kubernetes manifests offline, with the validator's npm packages
-# installed here into deploy/k8s/validator/node_modules).
+# installed here into deploy/k8s/validator/node_modules; libjs-chart.js is embedded in invr-server's
+# dashboard at build time, and the dashboard's browser test drives Debian's chromium headless
+# through the DevTools protocol with python3-websocket).
 # Idempotent and non-interactive; run as root (or through sudo).
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
@@ -23,6 +25,7 @@ BUILD_PACKAGES=(
   libspdlog-dev libfmt-dev libssl-dev libcpp-httplib-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev nlohmann-json3-dev libpugixml-dev
+  libjs-chart.js
 )
 # Tests, demo, charts and deployment checks.
 PACKAGES=(
@@ -32,6 +35,7 @@ PACKAGES=(
   slurm-wlm munge
   openssl iproute2
   nodejs
+  chromium python3-websocket
 )
 if [ "${1:-}" = "--build-only" ]; then PACKAGES=("${BUILD_PACKAGES[@]}"); fi
 

@@ -97,7 +97,8 @@ grpc::ServerReadReactor<grpc::ByteBuffer>* ClientService::UploadAsset(grpc::Call
 }
 
 grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
-  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "SubmitJob"); !st.ok()) return finish(ctx, st);
+  std::string submittedBy;
+  if (grpc::Status st = auth_.check(ctx, CallerRole::Client, "SubmitJob", &submittedBy); !st.ok()) return finish(ctx, st);
   auto req = std::make_shared<v1::SubmitJobRequest>();
   if (grpc::Status st = parseRequest(*bytes, *req); !st.ok()) return finish(ctx, st);
   v1::SubmitJobResponse resp;
@@ -112,11 +113,11 @@ grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* 
   if (grpc::Status room = book_.roomInQueue(); !room.ok()) return finish(ctx, room);
   auto* reactor = ctx->DefaultReactor();
   // Building the problem loads meshes and textures: not on a gRPC thread.
-  control_.post([this, reactor, req, out] {
+  control_.post([this, reactor, req, out, submittedBy] {
     grpc::Status st;
     v1::SubmitJobResponse resp;
     try {
-      st = submit(*req, resp);
+      st = submit(*req, submittedBy, resp);
     } catch (const std::exception& e) {  // the store's disk, not the job: say so, keep serving
       st = grpc::Status(grpc::StatusCode::INTERNAL, std::string("job store: ") + e.what());
     }
@@ -126,13 +127,13 @@ grpc::ServerUnaryReactor* ClientService::SubmitJob(grpc::CallbackServerContext* 
   return reactor;
 }
 
-grpc::Status ClientService::submit(const v1::SubmitJobRequest& req, v1::SubmitJobResponse& resp) {
+grpc::Status ClientService::submit(const v1::SubmitJobRequest& req, const std::string& submittedBy, v1::SubmitJobResponse& resp) {
   v1::JobSpec spec = req.spec();
   std::unique_ptr<Problem> validated;
   if (grpc::Status st = admission_.admit(spec, nullptr, &validated); !st.ok()) return st;
   std::string id;
   bool existing = false;
-  if (grpc::Status st = book_.add(spec, req.request_id(), &id, &existing); !st.ok()) return st;
+  if (grpc::Status st = book_.add(spec, req.request_id(), &id, &existing, submittedBy); !st.ok()) return st;
   resp.set_job_id(id);
   resp.set_existing(existing);
   if (!existing) prepared_.offer(id, std::move(validated));

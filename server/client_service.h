@@ -46,7 +46,7 @@ class ClientService final : public RawClientApi {
   grpc::ServerUnaryReactor* answerOffThread(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out,
                                             const char* method, Work work);
 
-  grpc::Status submit(const invr::v1::SubmitJobRequest& req, invr::v1::SubmitJobResponse& resp);
+  grpc::Status submit(const invr::v1::SubmitJobRequest& req, const std::string& submittedBy, invr::v1::SubmitJobResponse& resp);
 
   JobBook& book_;
   const Admission& admission_;

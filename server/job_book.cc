@@ -73,7 +73,8 @@ grpc::Status JobBook::roomInQueue() const {
   return grpc::Status::OK;
 }
 
-grpc::Status JobBook::add(const v1::JobSpec& spec, const std::string& requestId, std::string* id, bool* existing) {
+grpc::Status JobBook::add(const v1::JobSpec& spec, const std::string& requestId, std::string* id, bool* existing,
+                          const std::string& submittedBy) {
   std::lock_guard<std::mutex> lk(mu_);
   *existing = false;
   if (!requestId.empty()) {  // a concurrent retry may have won the race
@@ -92,6 +93,7 @@ grpc::Status JobBook::add(const v1::JobSpec& spec, const std::string& requestId,
   *j.rec.mutable_spec() = spec;
   j.rec.set_state(v1::QUEUED);
   j.rec.set_submitted_unix(unixMs() / 1000);
+  j.rec.set_submitted_by(submittedBy);
   try {
     store_.saveRecord(j.rec);
   } catch (const std::exception& e) {
@@ -192,6 +194,8 @@ void JobBook::stepDone(const std::string& id, const v1::StepProgress& sp, double
   j.seconds = sp.seconds();
   j.workerSeconds = workerSeconds;
   j.workers = workers;
+  j.stepsPerSecond = sp.steps_per_second();
+  j.etaSeconds = sp.eta_seconds();
   v1::ProgressEvent ev;
   *ev.mutable_step() = sp;
   publishLocked(j, std::move(ev));
@@ -279,7 +283,24 @@ v1::JobStatus JobBook::statusLocked(const Entry& j) const {
   s.set_priority(std::max<uint32_t>(1, j.rec.spec().scheduling().priority()));
   s.set_worker_seconds(j.workerSeconds);
   s.set_workers(j.workers);
+  if (j.rec.state() == v1::RUNNING) {
+    s.set_steps_per_second(j.stepsPerSecond);
+    s.set_eta_seconds(j.etaSeconds);
+  }
+  s.set_submitted_by(j.rec.submitted_by());
   return s;
+}
+
+grpc::Status JobBook::events(const std::string& id, uint64_t fromSequence, size_t max, std::vector<v1::ProgressEvent>* out) const {
+  std::lock_guard<std::mutex> lk(mu_);
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) return notFound(id);
+  out->clear();
+  const auto& ev = it->second.events;  // in sequence order
+  auto from = std::lower_bound(ev.begin(), ev.end(), fromSequence,
+                               [](const v1::ProgressEvent& e, uint64_t s) { return e.sequence() < s; });
+  for (; from != ev.end() && out->size() < max; ++from) out->push_back(*from);
+  return grpc::Status::OK;
 }
 
 grpc::Status JobBook::status(const std::string& id, v1::JobStatus* out) const {

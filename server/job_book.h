@@ -45,7 +45,9 @@ class JobBook {
   // OK, or RESOURCE_EXHAUSTED when the queue is full.
   grpc::Status roomInQueue() const;
   // Records and queues a validated job. A request id seen before returns its job (existing).
-  grpc::Status add(const invr::v1::JobSpec& spec, const std::string& requestId, std::string* id, bool* existing);
+  // `submittedBy`: the client token's name (empty when tokens are off).
+  grpc::Status add(const invr::v1::JobSpec& spec, const std::string& requestId, std::string* id, bool* existing,
+                   const std::string& submittedBy = "");
 
   // ---- the queue (runner threads)
   // Blocks until a job is queued (marked RUNNING and returned) or stop() (nullopt).
@@ -76,6 +78,8 @@ class JobBook {
   // Sends the events from `fromSequence` on, then new ones as they come.
   grpc::Status watch(const std::string& id, uint64_t fromSequence, EventSink* sink);
   void unwatch(const std::string& id, EventSink* sink);
+  // The job's events from `fromSequence` on, at most `max` of them (the dashboard polls these).
+  grpc::Status events(const std::string& id, uint64_t fromSequence, size_t max, std::vector<invr::v1::ProgressEvent>* out) const;
 
   // Wakes take() (returns nullopt) and closes every watcher.
   void stop();
@@ -90,6 +94,7 @@ class JobBook {
     bool cancelRequested = false;
     uint64_t step = 0, steps = 0;
     double loss = std::numeric_limits<double>::quiet_NaN(), paramError = -1, seconds = 0, workerSeconds = 0;
+    double stepsPerSecond = 0, etaSeconds = 0;
     uint32_t workers = 0;
     std::string method;
     std::set<EventSink*> watchers;

@@ -360,7 +360,10 @@ void JobRunner::writeSnapshot(Context& c, uint64_t step) {
     t.set_kind(v1::Task::SNAPSHOT);
     t.set_final_spp(opt_.finalSpp);
     for (int v : p.shards[s])
-      if (v < opt_.finalViews) t.add_views(v);
+      if (v < opt_.finalViews) {
+        t.add_views(v);
+        if (!std::filesystem::exists(dir / ("target_view" + std::to_string(v) + ".png"))) t.set_with_targets(true);
+      }
     if (t.views_size() > 0) tasks[s] = std::move(t);
   }
   std::vector<std::optional<v1::TaskResult>> results;
@@ -371,11 +374,16 @@ void JobRunner::writeSnapshot(Context& c, uint64_t step) {
   }
   for (size_t s = 0; s < results.size(); ++s) {
     if (!results[s]) continue;
-    for (int k = 0; k < results[s]->renders_size() && k < tasks[s]->views_size(); ++k) {
+    // Renders, then (from a worker that holds the shard's session) the targets: each target is
+    // written once, beside the snapshots, for the dashboard's side-by-side views.
+    const int nv = tasks[s]->views_size();
+    const bool withTargets = tasks[s]->with_targets() && results[s]->renders_size() == 2 * nv;
+    for (int k = 0; k < results[s]->renders_size() && k < (withTargets ? 2 * nv : nv); ++k) {
+      const std::string name = (k < nv ? stem + "_view" : std::string("target_view")) + std::to_string(tasks[s]->views(k % nv)) + ".png";
+      if (k >= nv && std::filesystem::exists(dir / name)) continue;
       bool ok = false;
       Image im = fromWire(results[s]->renders(k), &ok);
       if (!ok) continue;
-      const std::string name = stem + "_view" + std::to_string(tasks[s]->views(k)) + ".png";
       try {
         writeImage(dir / name, im);
         files.push_back("snapshots/" + name);

@@ -42,6 +42,9 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(invr::wire::kPositive);
   app.add_option("--metrics-address", o.metricsAddress, "serve Prometheus metrics at http://HOST:PORT/metrics (default: none)");
+  app.add_option("--http-address", o.httpAddress,
+                 "serve the dashboard, a read-only web application and its JSON API, at http://HOST:PORT/ (a port alone: "
+                 "127.0.0.1; beyond loopback it needs --tls-cert/--tls-key (then https) and client tokens, or --insecure; default: none)");
   app.add_option("--health-address", o.healthAddress,
                  "also serve the gRPC health service alone, in plaintext, on HOST:PORT (for probes that cannot do TLS)");
   std::string tlsCert, tlsKey, tlsClientCa, clientTokenFile, workerTokenFile;
@@ -50,7 +53,8 @@ int main(int argc, char** argv) {
   app.add_option("--tls-client-ca", tlsClientCa, "CA (PEM) whose certificates clients and workers must present (mutual TLS)");
   app.add_flag("--insecure", o.insecure, "allow plaintext on a non-loopback address (logs a warning)");
   app.add_option("--client-token-file", clientTokenFile,
-                 "bearer token clients must send (file with one line; default: $INVR_CLIENT_TOKEN; none: client API unchecked)");
+                 "bearer tokens clients may send, one per line: 'NAME TOKEN' or the token alone (named client); the name is shown as "
+                 "who submitted a job (default: $INVR_CLIENT_TOKEN; none: client API and dashboard unchecked)");
   app.add_option("--worker-token-file", workerTokenFile,
                  "bearer token workers must send, different from the client token (default: $INVR_WORKER_TOKEN; none: worker API unchecked)");
   CLI11_PARSE(app, argc, argv);
@@ -63,7 +67,10 @@ int main(int argc, char** argv) {
     if (!tlsCert.empty()) o.tlsCertPem = invr::wire::readPemFile(tlsCert, "--tls-cert");
     if (!tlsKey.empty()) o.tlsKeyPem = invr::wire::readPemFile(tlsKey, "--tls-key");
     if (!tlsClientCa.empty()) o.tlsClientCaPem = invr::wire::readPemFile(tlsClientCa, "--tls-client-ca");
-    o.clientToken = tokenFrom(clientTokenFile, "INVR_CLIENT_TOKEN", "--client-token-file");
+    if (!clientTokenFile.empty())
+      o.clientTokens = invr::server::readClientTokenFile(clientTokenFile);
+    else
+      o.clientToken = tokenFrom("", "INVR_CLIENT_TOKEN", "--client-token-file");
     o.workerToken = tokenFrom(workerTokenFile, "INVR_WORKER_TOKEN", "--worker-token-file");
   } catch (const std::exception& e) {
     std::cerr << "invr-server: " << e.what() << "\n";
@@ -86,6 +93,7 @@ int main(int argc, char** argv) {
       std::rename((portFile + ".tmp").c_str(), portFile.c_str());
     }
     std::cout << "invr-server: listening on port " << port << std::endl;
+    if (const std::string url = server.dashboardUrl(); !url.empty()) std::cout << "invr-server: dashboard at " << url << std::endl;
     int sig = 0;
     sigwait(&set, &sig);
     spdlog::info("signal {}: shutting down (unfinished jobs resume on restart)", sig);

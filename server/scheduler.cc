@@ -142,9 +142,15 @@ std::vector<v1::WorkerStatus> Scheduler::workers() const {
     s.set_leaving(w.leaving);
     s.set_shards(uint32_t(loadLocked(id)));
     uint32_t jobs = 0;
-    for (const auto& [jid, j] : jobs_) jobs += std::count(j.assignment.begin(), j.assignment.end(), id) > 0;
+    for (const auto& [jid, j] : jobs_)
+      if (std::count(j.assignment.begin(), j.assignment.end(), id) > 0) {
+        ++jobs;
+        s.add_job_ids(jid);
+      }
     s.set_jobs(jobs);
     s.set_busy(w.inFlight != 0);
+    if (w.inFlight != 0) s.set_current_job(w.inFlightJob);
+    s.set_seconds_since_heard(std::chrono::duration<double>(Clock::now() - w.lastSeen).count());
     out.push_back(std::move(s));
   }
   return out;
@@ -307,6 +313,7 @@ void Scheduler::sendLocked(Job& job, size_t s, Worker& w) {
   l.task.set_shard(t.shard());
   *l.task.mutable_views() = t.views();
   l.task.set_render_only(t.render_only());
+  l.task.set_with_targets(t.with_targets());
   // The spec travels once per worker connection; later tasks name it by hash.
   if (auto [it, fresh] = w.specsSent.try_emplace(job.info.id, job.info.specHash); fresh || it->second != job.info.specHash) {
     it->second = job.info.specHash;

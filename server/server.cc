@@ -19,6 +19,7 @@
 #include "server/auth.h"
 #include "server/client_service.h"
 #include "server/control_queue.h"
+#include "server/dashboard.h"
 #include "server/job_book.h"
 #include "server/job_runner.h"
 #include "server/job_store.h"
@@ -27,6 +28,14 @@
 #include "server/worker_service.h"
 
 namespace invr::server {
+
+namespace {
+std::vector<NamedToken> clientTokensOf(const ServerOptions& o) {
+  std::vector<NamedToken> all = o.clientTokens;
+  if (!o.clientToken.empty()) all.push_back({"client", o.clientToken});
+  return all;
+}
+}  // namespace
 
 // The parts, each with one job (see their headers), wired together.
 struct Server::Impl {
@@ -46,6 +55,7 @@ struct Server::Impl {
   std::unique_ptr<grpc::Server> grpcServer, healthServer;
   StepMetrics stepMetrics;
   std::unique_ptr<MetricsEndpoint> metrics;
+  std::unique_ptr<Dashboard> dashboard;
   int healthPort = 0;
   std::vector<std::thread> runnerThreads;
   int storeLock = -1;  // flock on <store>/LOCK while this server runs
@@ -57,7 +67,7 @@ struct Server::Impl {
         book(store, opt.maxQueued),
         scheduler(SchedulerOptions{opt.leaseSeconds, opt.heartbeatTimeoutSeconds, opt.maxAttempts, opt.assignGraceSeconds}),
         admission(assets, opt.maxJobBytes, [this] { return scheduler.maxWorkerThreads(); }),
-        auth(opt.clientToken, opt.workerToken),
+        auth(clientTokensOf(opt), opt.workerToken),
         runner(RunnerOptions{opt.finalSpp, opt.finalViews}, store, book, scheduler, admission, prepared, stopping) {}
   ~Impl() {
     if (storeLock >= 0) ::close(storeLock);
@@ -85,8 +95,9 @@ namespace {
 std::shared_ptr<grpc::ServerCredentials> credentials(const ServerOptions& o) {
   if (o.tlsCertPem.empty() != o.tlsKeyPem.empty()) throw InputError("--tls-cert and --tls-key go together (the server's certificate and its key)");
   if (!o.tlsClientCaPem.empty() && o.tlsCertPem.empty()) throw InputError("--tls-client-ca needs --tls-cert and --tls-key (mutual TLS is TLS)");
-  if (!o.clientToken.empty() && o.clientToken == o.workerToken)
-    throw InputError("the client token and the worker token are the same; a client could then connect workers");
+  for (const auto& c : clientTokensOf(o))
+    if (!o.workerToken.empty() && c.token == o.workerToken)
+      throw InputError("the client token '" + c.name + "' and the worker token are the same; a client could then connect workers");
   if (!o.tlsCertPem.empty()) {
     grpc::SslServerCredentialsOptions ssl(o.tlsClientCaPem.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
                                                                   : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
@@ -98,7 +109,7 @@ std::shared_ptr<grpc::ServerCredentials> credentials(const ServerOptions& o) {
     if (!o.insecure)
       throw InputError("listening on " + o.address + " (not loopback) needs TLS (--tls-cert and --tls-key) or --insecure");
     spdlog::warn("listening on {} without TLS (--insecure): anyone on the network can read the traffic{}", o.address,
-                 o.clientToken.empty() || o.workerToken.empty() ? " and, without both tokens, use the service" : ", tokens included");
+                 clientTokensOf(o).empty() || o.workerToken.empty() ? " and, without both tokens, use the service" : ", tokens included");
   }
   return grpc::InsecureServerCredentials();
 }
@@ -158,6 +169,11 @@ int Server::start() {
     });
     spdlog::info("metrics on http://{}/metrics", s.opt.metricsAddress);
   }
+  if (!s.opt.httpAddress.empty()) {
+    s.dashboard = std::make_unique<Dashboard>(DashboardOptions{s.opt.httpAddress, s.opt.tlsCertPem, s.opt.tlsKeyPem, s.opt.insecure},
+                                              s.book, s.scheduler, s.auth);
+    spdlog::info("dashboard on {}", s.dashboard->url());
+  }
   for (int i = 0; i < std::max(1, s.opt.maxRunningJobs); ++i) s.runnerThreads.emplace_back([&s] { s.runnerLoop(); });
   spdlog::info("invr-server listening on port {} ({}{}; store {}, up to {} jobs at once)", port, s.opt.tlsCertPem.empty() ? "plaintext" : "TLS",
                s.opt.tlsClientCaPem.empty() ? "" : " with client certificates",
@@ -178,12 +194,14 @@ void Server::shutdown() {
     if (t.joinable()) t.join();
   s.control->stop();
   s.metrics.reset();
+  s.dashboard.reset();
   s.grpcServer->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   if (s.healthServer) s.healthServer->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
 }
 
 int Server::metricsPort() const { return impl_->metrics ? impl_->metrics->port() : 0; }
 int Server::healthPort() const { return impl_->healthPort; }
+std::string Server::dashboardUrl() const { return impl_->dashboard ? impl_->dashboard->url() : std::string(); }
 
 void Server::wait() {
   if (impl_->grpcServer) impl_->grpcServer->Wait();

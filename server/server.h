@@ -16,6 +16,9 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
+
+#include "server/auth.h"
 
 namespace invr::server {
 
@@ -36,8 +39,12 @@ struct ServerOptions {
   std::string tlsCertPem, tlsKeyPem;
   std::string tlsClientCaPem;  // non-empty: clients and workers must present a certificate it signed (mutual TLS)
   bool insecure = false;       // allow plaintext beyond loopback (a warning is logged)
-  // Bearer tokens; empty: that API is not checked. They must differ.
-  std::string clientToken, workerToken;
+  // Bearer tokens; none: that API is not checked. Client and worker tokens must differ.
+  std::string clientToken, workerToken;  // clientToken: one client token, named "client"
+  std::vector<NamedToken> clientTokens;  // more client tokens, by name (`--client-token-file`)
+  // host:port of the dashboard (a read-only web application over HTTP, HTTPS with the TLS
+  // certificate; empty: none). Beyond loopback it needs TLS or `insecure`, as the gRPC port.
+  std::string httpAddress;
   std::string metricsAddress;  // host:port for Prometheus metrics at /metrics over HTTP (empty: none)
   std::string healthAddress;   // host:port of a plaintext listener with only the gRPC health service (probes that cannot do TLS)
   int finalSpp = 64;                     // final renders written with the results
@@ -58,6 +65,7 @@ class Server {
   void wait();
   int metricsPort() const;  // 0 without a metrics endpoint
   int healthPort() const;   // 0 without a health listener
+  std::string dashboardUrl() const;  // empty without --http-address
 
   struct Impl;
 

@@ -92,6 +92,10 @@ std::optional<v1::WorkerMessage> TaskRunner::execute(const v1::Task& t) {
         if (v < 0 || size_t(v) >= p.scene->cameras.size()) throw InputError("task: view " + std::to_string(v) + " out of range");
         toProto(renderView(*p.scene, v, ro).image, res.add_renders());
       }
+      // The targets beside them when asked (the dashboard shows both) and the session holds them.
+      if (existing && t.with_targets())
+        for (int v : t.views())
+          if (size_t(v) < existing->targets.size()) toProto(existing->targets[size_t(v)], res.add_renders());
       return out;
     }
     Session& s = session(t, *spec, res);

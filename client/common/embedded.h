@@ -59,7 +59,9 @@ struct LocalWorkers {
 // all connected (shards stick to the workers present when a job starts).
 class EmbeddedService {
  public:
-  EmbeddedService(const std::filesystem::path& store, int workers, int threads) : server_(options(store)) {
+  // httpAddress: the server's dashboard (--http-address), empty for none.
+  EmbeddedService(const std::filesystem::path& store, int workers, int threads, const std::string& httpAddress = "")
+      : server_(options(store, httpAddress)) {
     int port = server_.start();
     local_.start(workers, threads, port, store);
     // Its own loopback server: plaintext, no token, whatever the command line says about others.
@@ -69,15 +71,17 @@ class EmbeddedService {
   }
   ~EmbeddedService() { stop(); }
   ServiceClient& client() { return *client_; }
+  std::string dashboardUrl() const { return server_.dashboardUrl(); }
   void stop() {
     server_.shutdown();  // first: an unfinished job stays as it was, not "worker lost"
     local_.stop();
   }
 
  private:
-  static server::ServerOptions options(const std::filesystem::path& store) {
+  static server::ServerOptions options(const std::filesystem::path& store, const std::string& httpAddress) {
     server::ServerOptions o;
     o.storeDir = store;
+    o.httpAddress = httpAddress;
     return o;
   }
   server::Server server_;

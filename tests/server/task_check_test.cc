@@ -114,6 +114,28 @@ TEST(TaskCheck, FinalRendersMustHaveTheFilmSizeAndTheirPixels) {
   EXPECT_NE(checkTaskResult(t, r, kShape), "");  // a gradient where images were asked for
 }
 
+TEST(TaskCheck, SnapshotsCarryTheirRendersAndTheTargetsOnlyWhenAsked) {
+  v1::Task t = gradientTask();
+  t.set_kind(v1::Task::SNAPSHOT);
+  auto withImages = [&](int n) {
+    v1::TaskResult r = answer(t, 0);
+    for (int k = 0; k < n; ++k) {
+      v1::FloatImage* im = r.add_renders();
+      im->set_width(8);
+      im->set_height(6);
+      im->set_channels(3);
+      for (int i = 0; i < 8 * 6 * 3; ++i) im->add_pixels(0.f);
+    }
+    return r;
+  };
+  EXPECT_EQ(checkTaskResult(t, withImages(2), kShape), "");
+  EXPECT_EQ(checkTaskResult(t, withImages(4), kShape), "4 images for 2 view(s) (expected 2)");  // targets not asked for
+  t.set_with_targets(true);
+  EXPECT_EQ(checkTaskResult(t, withImages(4), kShape), "");  // renders, then targets
+  EXPECT_EQ(checkTaskResult(t, withImages(2), kShape), "");  // a worker without the session has no targets
+  EXPECT_EQ(checkTaskResult(t, withImages(3), kShape), "3 images for 2 view(s) (expected 2)");
+}
+
 TEST(TaskCheck, ASpecUnknownAnswerCarriesNothingElse) {
   v1::Task t = gradientTask();
   v1::TaskResult r = answer(t, 0);

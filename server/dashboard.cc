@@ -1,0 +1,520 @@
+#include "server/dashboard.h"
+
+#include <httplib.h>
+#include <openssl/pem.h>
+#include <openssl/rand.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <charconv>
+#include <chrono>
+#include <fstream>
+#include <list>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include "core/error.h"
+#include "core/image/image.h"
+#include "proto/wire/wire.h"
+#include "server/auth.h"
+#include "server/dashboard_assets.h"
+#include "server/job_book.h"
+#include "server/scheduler.h"
+
+namespace invr::server {
+
+namespace v1 = invr::v1;
+using nlohmann::json;
+
+namespace {
+
+
+// Signed-in browsers: random session ids (what the cookie holds, never the token), bounded in
+// number and lifetime so that an open page or many sign-ins cannot grow the server.
+class SessionTable {
+ public:
+  SessionTable(size_t capacity, double hours) : capacity_(capacity), lifetime_(std::chrono::seconds(int64_t(hours * 3600))) {}
+
+  std::string create(const std::string& name) {
+    unsigned char raw[32];
+    if (RAND_bytes(raw, sizeof raw) != 1) throw std::runtime_error("no randomness for a session id");
+    static const char* hex = "0123456789abcdef";
+    std::string id;
+    for (unsigned char c : raw) id += {hex[c >> 4], hex[c & 15]};
+    std::lock_guard<std::mutex> lk(mu_);
+    order_.push_back(id);
+    byId_[id] = {name, Clock::now() + lifetime_, std::prev(order_.end())};
+    while (byId_.size() > capacity_) drop(order_.front());
+    return id;
+  }
+  std::optional<std::string> find(const std::string& id) {
+    std::lock_guard<std::mutex> lk(mu_);
+    auto it = byId_.find(id);
+    if (it == byId_.end()) return std::nullopt;
+    if (Clock::now() > it->second.expires) {
+      drop(id);
+      return std::nullopt;
+    }
+    return it->second.name;
+  }
+  void remove(const std::string& id) {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (byId_.count(id)) drop(id);
+  }
+  int maxAgeSeconds() const { return int(std::chrono::duration_cast<std::chrono::seconds>(lifetime_).count()); }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  struct Entry {
+    std::string name;
+    Clock::time_point expires;
+    std::list<std::string>::iterator pos;
+  };
+  void drop(const std::string& id) {
+    auto it = byId_.find(id);
+    order_.erase(it->second.pos);
+    byId_.erase(it);
+  }
+  const size_t capacity_;
+  const Clock::duration lifetime_;
+  std::mutex mu_;
+  std::list<std::string> order_;  // oldest first
+  std::map<std::string, Entry> byId_;
+};
+
+std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+const char* stateName(v1::JobState s) {
+  switch (s) {
+    case v1::QUEUED: return "queued";
+    case v1::RUNNING: return "running";
+    case v1::SUCCEEDED: return "succeeded";
+    case v1::FAILED: return "failed";
+    case v1::CANCELLED: return "cancelled";
+    default: return "unknown";
+  }
+}
+
+json statusJson(const v1::JobStatus& s) {
+  return json{{"job_id", s.job_id()},
+              {"name", s.name()},
+              {"state", stateName(s.state())},
+              {"reason", s.reason()},
+              {"step", s.step()},
+              {"steps", s.steps()},
+              {"loss", s.loss()},
+              {"param_error", s.param_error()},
+              {"seconds", s.seconds()},
+              {"method", s.method()},
+              {"last_sequence", s.last_sequence()},
+              {"submitted_unix", s.submitted_unix()},
+              {"submitted_by", s.submitted_by()},
+              {"priority", s.priority()},
+              {"workers", s.workers()},
+              {"worker_seconds", s.worker_seconds()},
+              {"steps_per_second", s.steps_per_second()},
+              {"eta_seconds", s.eta_seconds()}};
+}
+
+json stepJson(const v1::StepProgress& sp) {
+  json params = json::object();
+  for (const auto& p : sp.parameters()) params[p.name()] = std::vector<double>(p.values().begin(), p.values().end());
+  return json{{"step", sp.step()},
+              {"steps", sp.steps()},
+              {"loss", sp.loss()},
+              {"param_error", sp.param_error()},
+              {"shape_error", sp.shape_error()},
+              {"image_loss", sp.image_loss()},
+              {"seconds", sp.seconds()},
+              {"steps_per_second", sp.steps_per_second()},
+              {"eta_seconds", sp.eta_seconds()},
+              {"parameters", params}};
+}
+
+// What a job's page shows from its results: the latest snapshot per view beside the target (and
+// the final render once there is one), and the texture parameters as images.
+// A count from a result name's digits; nullopt when it does not fit (names come from the disk).
+std::optional<uint64_t> number(const std::ssub_match& m) {
+  uint64_t v = 0;
+  auto [end, ec] = std::from_chars(&*m.first, &*m.first + m.length(), v);
+  if (ec != std::errc() || end != &*m.first + m.length() || v > uint64_t(1) << 40) return std::nullopt;
+  return v;
+}
+
+json imagesJson(const v1::JobStatus& s) {
+  static const std::regex snapshot(R"(snapshots/step(\d+)_view(\d+)\.png)");
+  static const std::regex stepTexture(R"(snapshots/step(\d+)/[^/]+\.exr)");
+  static const std::regex render(R"((initial|final|target|variance)_view\d+\.(png|exr))");
+  std::set<std::string> have(s.results().begin(), s.results().end());
+  static const std::regex target(R"((?:snapshots/)?target_view(\d+)\.png)");
+  static const std::regex final(R"(final_view(\d+)\.png)");
+  uint64_t latest = 0;
+  std::smatch m;
+  for (const auto& r : have)
+    if (std::regex_match(r, m, snapshot))
+      if (auto k = number(m[1])) latest = std::max(latest, *k);
+  std::map<uint64_t, json> views;
+  auto view = [&](uint64_t v) -> json& {
+    auto& j = views[v];
+    if (j.is_null()) j = json{{"view", v}, {"snapshot", nullptr}, {"target", nullptr}, {"final", nullptr}};
+    return j;
+  };
+  for (const auto& r : have) {
+    if (std::regex_match(r, m, snapshot) && number(m[1]) == latest)
+      if (auto v = number(m[2])) view(*v)["snapshot"] = r;
+    if (std::regex_match(r, m, target))
+      if (auto v = number(m[1])) view(*v)["target"] = r;
+    if (std::regex_match(r, m, final))
+      if (auto v = number(m[1])) view(*v)["final"] = r;
+  }
+  json textures = json::array();
+  const bool finished = finishedState(s.state()) && have.count("parameters.json");
+  for (const auto& r : have) {
+    const bool top = r.find('/') == std::string::npos && r.size() > 4 && r.compare(r.size() - 4, 4, ".exr") == 0 &&
+                     !std::regex_match(r, render);
+    if (finished ? top : std::regex_match(r, m, stepTexture) && number(m[1]) == latest) textures.push_back(r);
+  }
+  json v = json::array();
+  for (auto& [k, j] : views) v.push_back(std::move(j));
+  return json{{"snapshot_step", latest}, {"views", std::move(v)}, {"textures", std::move(textures)}};
+}
+
+std::string readFile(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream o;
+  o << in.rdbuf();
+  return o.str();
+}
+
+std::string contentType(const std::string& name) {
+  auto ends = [&](const char* e) { return name.size() >= strlen(e) && name.compare(name.size() - strlen(e), strlen(e), e) == 0; };
+  if (ends(".png")) return "image/png";
+  if (ends(".json") || ends(".jsonl")) return "application/json";
+  if (ends(".csv")) return "text/csv; charset=utf-8";
+  return "application/octet-stream";
+}
+
+// HOST:PORT, or a port alone (loopback).
+std::pair<std::string, int> splitAddress(const std::string& address) {
+  std::string a = address.find(':') == std::string::npos ? "127.0.0.1:" + address : address;
+  auto colon = a.rfind(':');
+  std::string host = a.substr(0, colon);
+  if (host.size() > 1 && host.front() == '[') host = host.substr(1, host.size() - 2);
+  try {
+    size_t used = 0;
+    int port = std::stoi(a.substr(colon + 1), &used);
+    if (used != a.size() - colon - 1 || port < 0 || port > 65535) throw std::invalid_argument("port");
+    return {host, port};
+  } catch (const std::exception&) {
+    throw InputError("--http-address '" + address + "': expected HOST:PORT or PORT");
+  }
+}
+
+std::unique_ptr<httplib::Server> makeServer(const DashboardOptions& o) {
+  if (o.tlsCertPem.empty()) return std::make_unique<httplib::Server>();
+  auto pem = [](const std::string& text) { return BIO_new_mem_buf(text.data(), int(text.size())); };
+  BIO* cb = pem(o.tlsCertPem);
+  BIO* kb = pem(o.tlsKeyPem);
+  X509* cert = PEM_read_bio_X509(cb, nullptr, nullptr, nullptr);
+  EVP_PKEY* key = PEM_read_bio_PrivateKey(kb, nullptr, nullptr, nullptr);
+  BIO_free(cb);
+  BIO_free(kb);
+  if (!cert || !key) {
+    X509_free(cert);
+    EVP_PKEY_free(key);
+    throw InputError("--http-address: cannot read the TLS certificate or key (PEM)");
+  }
+  auto s = std::make_unique<httplib::SSLServer>(cert, key);  // the context keeps its own references
+  X509_free(cert);
+  EVP_PKEY_free(key);
+  if (!s->is_valid()) throw InputError("--http-address: the TLS certificate and key do not make a valid HTTPS server");
+  return s;
+}
+
+}  // namespace
+
+struct Dashboard::Impl {
+  DashboardOptions opt;
+  const JobBook& book;
+  const Scheduler& scheduler;
+  const Authenticator& auth;
+  SessionTable sessions;
+  std::unique_ptr<httplib::Server> http;
+  std::thread thread;
+  std::string host;
+  int port = 0;
+  bool loopbackOnly = true;
+
+  Impl(DashboardOptions o, const JobBook& b, const Scheduler& s, const Authenticator& a)
+      : opt(std::move(o)), book(b), scheduler(s), auth(a), sessions(opt.maxSessions, opt.sessionHours) {}
+
+  static void error(httplib::Response& res, int status, const std::string& message) {
+    res.status = status;
+    res.set_content(dump(json{{"error", message}}), "application/json");
+  }
+
+  // The session cookie, named by port: cookies are not told apart by port, and two servers on
+  // one host must not sign each other's browsers out.
+  std::string cookieName() const { return "invr_session_" + std::to_string(port); }
+
+  std::string cookieValue(const httplib::Request& req) const {
+    const std::string all = req.get_header_value("Cookie");
+    std::istringstream in(all);
+    std::string part;
+    while (std::getline(in, part, ';')) {
+      size_t b = part.find_first_not_of(' ');
+      if (b == std::string::npos) continue;
+      part = part.substr(b);
+      const std::string prefix = cookieName() + "=";
+      if (part.compare(0, prefix.size(), prefix) == 0) return part.substr(prefix.size());
+    }
+    return "";
+  }
+
+  // Who is asking: the token's (or session's) name, "" when client tokens are off; nullopt
+  // (and a 401 answer) when it cannot be told.
+  std::optional<std::string> caller(const httplib::Request& req, httplib::Response& res) {
+    if (!auth.enabled(CallerRole::Client)) return std::string();
+    const std::string authz = req.get_header_value("Authorization");
+    if (!authz.empty()) {
+      const std::string prefix = "Bearer ";
+      if (authz.compare(0, prefix.size(), prefix) == 0)
+        if (auto name = auth.clientTokenName(authz.substr(prefix.size()))) return name;
+      spdlog::warn("dashboard: a call from {} refused: invalid bearer token", req.remote_addr);
+      error(res, 401, "invalid bearer token");
+      return std::nullopt;
+    }
+    if (const std::string sid = cookieValue(req); !sid.empty())
+      if (auto name = sessions.find(sid)) return name;
+    error(res, 401, "sign in with a client token (the page's form, or the header 'Authorization: Bearer TOKEN')");
+    return std::nullopt;
+  }
+
+  // A state-changing call (sign-in, sign-out) must come from this origin: JSON only (a form on
+  // another site cannot send it without a CORS preflight, which is never granted) and, when the
+  // browser says where it comes from, this host.
+  static bool sameOrigin(const httplib::Request& req, httplib::Response& res) {
+    const std::string type = req.get_header_value("Content-Type");
+    if (type.compare(0, 16, "application/json") != 0) {
+      error(res, 415, "send JSON (Content-Type: application/json)");
+      return false;
+    }
+    const std::string origin = req.get_header_value("Origin");
+    const std::string host = req.get_header_value("Host");
+    if (!origin.empty() && origin != "http://" + host && origin != "https://" + host) {
+      error(res, 403, "cross-origin request refused");
+      return false;
+    }
+    return true;
+  }
+
+  void routes() {
+    httplib::Server& s = *http;
+    auto asset = [&s](const char* path, const EmbeddedFile& f, const char* type) {
+      s.Get(path, [f, type](const httplib::Request&, httplib::Response& res) {
+        res.set_content(f.data, f.size, type);
+        res.set_header("Cache-Control", "no-cache");
+      });
+    };
+    asset("/", dashboardFile("index.html"), "text/html; charset=utf-8");
+    asset("/app.js", dashboardFile("app.js"), "text/javascript; charset=utf-8");
+    asset("/style.css", dashboardFile("style.css"), "text/css; charset=utf-8");
+    asset("/chart.min.js", dashboardFile("chart.min.js"), "text/javascript; charset=utf-8");
+
+    s.Get("/api/session", [this](const httplib::Request& req, httplib::Response& res) {
+      json j{{"auth_required", auth.enabled(CallerRole::Client)}, {"signed_in", false}, {"name", ""}};
+      if (!auth.enabled(CallerRole::Client)) {
+        j["signed_in"] = true;
+      } else if (const std::string sid = cookieValue(req); !sid.empty()) {
+        if (auto name = sessions.find(sid)) j["signed_in"] = true, j["name"] = *name;
+      }
+      res.set_content(dump(j), "application/json");
+    });
+    s.Post("/api/login", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!sameOrigin(req, res)) return;
+      std::string token;
+      try {
+        token = json::parse(req.body).at("token").get<std::string>();
+      } catch (const std::exception&) {
+        return error(res, 400, "expected {\"token\": \"...\"}");
+      }
+      if (!auth.enabled(CallerRole::Client)) return error(res, 400, "this server checks no client tokens: nothing to sign in to");
+      auto name = auth.clientTokenName(token);
+      if (!name) {
+        spdlog::warn("dashboard: sign-in from {} refused: not a client token", req.remote_addr);
+        return error(res, 401, "not a client token of this server");
+      }
+      const std::string sid = sessions.create(*name);
+      res.set_header("Set-Cookie", cookieName() + "=" + sid + "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" +
+                                       std::to_string(sessions.maxAgeSeconds()) + (opt.tlsCertPem.empty() ? "" : "; Secure"));
+      spdlog::info("dashboard: {} signed in from {}", *name, req.remote_addr);
+      res.set_content(dump(json{{"name", *name}}), "application/json");
+    });
+    s.Post("/api/logout", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!sameOrigin(req, res)) return;
+      if (const std::string sid = cookieValue(req); !sid.empty()) sessions.remove(sid);
+      res.set_header("Set-Cookie", cookieName() + "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0");
+      res.set_content("{}", "application/json");
+    });
+
+    s.Get("/api/jobs", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!caller(req, res)) return;
+      json jobs = json::array();
+      for (const auto& st : book.list()) jobs.push_back(statusJson(st));
+      res.set_content(dump(json{{"jobs", std::move(jobs)}}), "application/json");
+    });
+    s.Get(R"(/api/jobs/([A-Za-z0-9._-]+))", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!caller(req, res)) return;
+      v1::JobStatus st;
+      if (grpc::Status g = book.status(req.matches[1], &st); !g.ok()) return error(res, 404, g.error_message());
+      json j = statusJson(st);
+      j["results"] = std::vector<std::string>(st.results().begin(), st.results().end());
+      j["images"] = imagesJson(st);
+      res.set_content(dump(j), "application/json");
+    });
+    s.Get(R"(/api/jobs/([A-Za-z0-9._-]+)/events)", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!caller(req, res)) return;
+      uint64_t from = 1;
+      size_t max = 1000;
+      try {
+        if (req.has_param("from")) from = std::stoull(req.get_param_value("from"));
+        if (req.has_param("max")) max = std::clamp<size_t>(std::stoull(req.get_param_value("max")), 1, 5000);
+      } catch (const std::exception&) {
+        return error(res, 400, "from and max are counts");
+      }
+      std::vector<v1::ProgressEvent> events;
+      if (grpc::Status g = book.events(req.matches[1], from, max, &events); !g.ok()) return error(res, 404, g.error_message());
+      json out = json::array();
+      uint64_t next = from;
+      for (const auto& e : events) {
+        json j{{"sequence", e.sequence()}, {"unix_ms", e.unix_ms()}};
+        if (e.has_step()) j["step"] = stepJson(e.step());
+        if (e.has_final()) j["final"] = statusJson(e.final());
+        if (e.kind_case() == v1::ProgressEvent::kMessage) j["message"] = e.message();
+        out.push_back(std::move(j));
+        next = e.sequence() + 1;
+      }
+      res.set_content(dump(json{{"events", std::move(out)}, {"next", next}}), "application/json");
+    });
+    // A result file as it is (`file`), or as a PNG the browser can show (`image`: PNGs as they
+    // are, EXR textures and renders converted, clamped and sRGB-encoded).
+    auto file = [this](bool asImage) {
+      return [this, asImage](const httplib::Request& req, httplib::Response& res) {
+        if (!caller(req, res)) return;
+        const std::string name = req.get_param_value("name");
+        std::filesystem::path path;
+        if (grpc::Status g = book.resultPath(req.matches[1], name, &path); !g.ok()) return error(res, 404, g.error_message());
+        const bool png = contentType(name) == "image/png";
+        const bool exr = name.size() > 4 && name.compare(name.size() - 4, 4, ".exr") == 0;
+        if (asImage && !png && !exr) return error(res, 415, "'" + name.substr(0, 256) + "' is not an image");
+        try {
+          if (asImage && exr) {
+            // Through a file of our own (O_EXCL, private), removed whatever happens.
+            std::string tmp = (std::filesystem::temp_directory_path() / "invr-dashboard-XXXXXX.png").string();
+            const int fd = ::mkstemps(tmp.data(), 4);
+            if (fd < 0) throw std::runtime_error("no temporary file for the conversion");
+            ::close(fd);
+            struct Remove {
+              std::string path;
+              ~Remove() { std::filesystem::remove(path); }
+            } remove{tmp};
+            writeImage(tmp, readImage(path, false));
+            res.set_content(readFile(tmp), "image/png");
+          } else {
+            res.set_content(readFile(path), contentType(name));
+            if (!asImage) res.set_header("Content-Disposition", "attachment");
+          }
+        } catch (const std::exception& e) {
+          return error(res, 500, std::string("cannot read '") + name.substr(0, 256) + "': " + e.what());
+        }
+        res.set_header("Cache-Control", "private, max-age=60");
+      };
+    };
+    s.Get(R"(/api/jobs/([A-Za-z0-9._-]+)/file)", file(false));
+    s.Get(R"(/api/jobs/([A-Za-z0-9._-]+)/image)", file(true));
+    s.Get("/api/workers", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!caller(req, res)) return;
+      json workers = json::array();
+      for (const auto& w : scheduler.workers())
+        workers.push_back(json{{"name", w.name()},
+                               {"threads", w.capacity()},
+                               {"busy", w.busy()},
+                               {"leaving", w.leaving()},
+                               {"shards", w.shards()},
+                               {"jobs", w.jobs()},
+                               {"job_ids", std::vector<std::string>(w.job_ids().begin(), w.job_ids().end())},
+                               {"current_job", w.current_job()},
+                               {"seconds_since_heard", w.seconds_since_heard()}});
+      res.set_content(dump(json{{"workers", std::move(workers)}}), "application/json");
+    });
+
+    // On loopback, only requests that name a loopback host: a web page elsewhere that points
+    // its own name at 127.0.0.1 (DNS rebinding) gets nothing, tokens or not.
+    s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      if (!loopbackOnly) return httplib::Server::HandlerResponse::Unhandled;
+      const std::string host = req.get_header_value("Host");
+      const std::string p = ":" + std::to_string(port);
+      for (const char* h : {"127.0.0.1", "localhost", "[::1]"})
+        if (host == h + p) return httplib::Server::HandlerResponse::Unhandled;
+      error(res, 421, "this dashboard answers to 127.0.0.1, localhost or [::1] on port " + std::to_string(port) + " only");
+      return httplib::Server::HandlerResponse::Handled;
+    });
+    s.set_payload_max_length(64 * 1024);  // the largest body it takes is a sign-in
+
+    // Every answer: no framing, no sniffing, no referrer, scripts and styles from here only (a
+    // name that slipped past the page's escaping still could not run), API answers not cached.
+    s.set_post_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+      res.set_header("Content-Security-Policy",
+                     "default-src 'self'; img-src 'self' data: blob:; script-src 'self'; style-src 'self'; object-src 'none'; "
+                     "base-uri 'none'; frame-ancestors 'none'; form-action 'self'");
+      res.set_header("X-Content-Type-Options", "nosniff");
+      res.set_header("X-Frame-Options", "DENY");
+      res.set_header("Referrer-Policy", "no-referrer");
+      if (req.path.compare(0, 5, "/api/") == 0 && !res.has_header("Cache-Control")) res.set_header("Cache-Control", "no-store");
+    });
+  }
+};
+
+Dashboard::Dashboard(DashboardOptions options, const JobBook& book, const Scheduler& scheduler, const Authenticator& auth)
+    : impl_(std::make_unique<Impl>(std::move(options), book, scheduler, auth)) {
+  Impl& d = *impl_;
+  auto [host, port] = splitAddress(d.opt.address);
+  const std::string hostPort = (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + std::to_string(port);
+  d.loopbackOnly = wire::isLoopbackAddress(hostPort);
+  if (!d.loopbackOnly && d.opt.tlsCertPem.empty()) {
+    if (!d.opt.insecure)
+      throw InputError("--http-address " + d.opt.address + " is not loopback: it needs TLS (--tls-cert and --tls-key) or --insecure");
+    spdlog::warn("dashboard on {} without TLS (--insecure): anyone on the network can read it{}", hostPort,
+                 d.auth.enabled(CallerRole::Client) ? ", session cookies included" : ", and without a client token anyone can open it");
+  } else if (!d.loopbackOnly && !d.auth.enabled(CallerRole::Client)) {
+    // Client certificates guard the gRPC port only: a browser brings none here.
+    if (!d.opt.insecure)
+      throw InputError("--http-address " + d.opt.address + " is not loopback: it needs client tokens (--client-token-file) or --insecure");
+    spdlog::warn("dashboard on {} without client tokens (--insecure): anyone who reaches it can read every job", hostPort);
+  }
+  d.http = makeServer(d.opt);
+  d.routes();
+  d.host = host;
+  d.port = port == 0 ? d.http->bind_to_any_port(host) : (d.http->bind_to_port(host, port) ? port : -1);
+  if (d.port <= 0) throw InputError("--http-address " + d.opt.address + ": cannot listen there (address in use, or not a local address)");
+  d.thread = std::thread([&d] { d.http->listen_after_bind(); });
+}
+
+Dashboard::~Dashboard() {
+  impl_->http->stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+int Dashboard::port() const { return impl_->port; }
+
+std::string Dashboard::url() const {
+  const std::string& h = impl_->host;
+  return std::string(impl_->opt.tlsCertPem.empty() ? "http" : "https") + "://" + (h.find(':') != std::string::npos ? "[" + h + "]" : h) +
+         ":" + std::to_string(impl_->port) + "/";
+}
+
+}  // namespace invr::server
