@@ -93,6 +93,42 @@ TEST(JobBook, WatchersGetTheLogFromTheirSequenceThenLiveEventsAndTheFinalOne) {
   EXPECT_EQ(book.watch("job-999999", 1, &after).error_code(), grpc::StatusCode::NOT_FOUND);
 }
 
+TEST(JobBook, EventsArePagedFromASequenceAndTheStatusCarriesRateAndSubmitter) {
+  TempDir dir;
+  JobStore store(dir.path);
+  JobBook book(store, 4);
+  std::string id;
+  bool existing = false;
+  ASSERT_TRUE(book.add(spec("a"), "", &id, &existing, "alice").ok());  // event 1: queued
+  ASSERT_TRUE(book.take());
+  for (int k = 1; k <= 5; ++k) {  // events 2..6
+    v1::StepProgress sp;
+    sp.set_step(uint64_t(k));
+    sp.set_steps_per_second(2.0 * k);
+    sp.set_eta_seconds(10.0 - k);
+    book.stepDone(id, sp, 0, 1);
+  }
+  std::vector<v1::ProgressEvent> ev;
+  ASSERT_TRUE(book.events(id, 3, 2, &ev).ok());
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_EQ(ev[0].sequence(), 3u);
+  EXPECT_EQ(ev[1].step().step(), 3u);
+  ASSERT_TRUE(book.events(id, 6, 100, &ev).ok());
+  ASSERT_EQ(ev.size(), 1u);
+  ASSERT_TRUE(book.events(id, 7, 100, &ev).ok());
+  EXPECT_TRUE(ev.empty());
+  EXPECT_EQ(book.events("job-999999", 1, 1, &ev).error_code(), grpc::StatusCode::NOT_FOUND);
+  v1::JobStatus st;
+  ASSERT_TRUE(book.status(id, &st).ok());
+  EXPECT_EQ(st.submitted_by(), "alice");
+  EXPECT_EQ(st.steps_per_second(), 10.0);
+  EXPECT_EQ(st.eta_seconds(), 5.0);
+  book.end(id, v1::SUCCEEDED, "", nullptr);
+  ASSERT_TRUE(book.status(id, &st).ok());
+  EXPECT_EQ(st.steps_per_second(), 0.0);  // a rate for running jobs only
+  EXPECT_EQ(st.submitted_by(), "alice");
+}
+
 TEST(JobBook, CancellingAQueuedJobEndsItARunningOneIsFlagged) {
   TempDir dir;
   JobStore store(dir.path);
