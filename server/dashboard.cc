@@ -91,6 +91,7 @@ class SessionTable {
 // quality (0.6 s for Chart.js, 0.2 s for a list of 100 jobs, measured); the page is served to
 // one user, mostly over loopback, where bytes are cheap and that time is not.
 constexpr const char* kJson = "application/json; charset=utf-8";
+constexpr size_t kMaxBody = 64 * 1024;
 constexpr const char* kJavaScript = "application/javascript; charset=utf-8";
 
 std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
@@ -161,9 +162,13 @@ json imagesJson(const v1::JobStatus& s) {
   static const std::regex final(R"(final_view(\d+)\.png)");
   uint64_t latest = 0;
   std::smatch m;
-  for (const auto& r : have)
+  uint64_t latestParameters = 0;  // a snapshot's parameters are written even when its renders fail
+  for (const auto& r : have) {
     if (std::regex_match(r, m, snapshot))
       if (auto k = number(m[1])) latest = std::max(latest, *k);
+    if (std::regex_match(r, m, stepTexture))
+      if (auto k = number(m[1])) latestParameters = std::max(latestParameters, *k);
+  }
   std::map<uint64_t, json> views;
   auto view = [&](uint64_t v) -> json& {
     auto& j = views[v];
@@ -183,7 +188,7 @@ json imagesJson(const v1::JobStatus& s) {
   for (const auto& r : have) {
     const bool top = r.find('/') == std::string::npos && r.size() > 4 && r.compare(r.size() - 4, 4, ".exr") == 0 &&
                      !std::regex_match(r, render);
-    if (finished ? top : std::regex_match(r, m, stepTexture) && number(m[1]) == latest) textures.push_back(r);
+    if (finished ? top : std::regex_match(r, m, stepTexture) && number(m[1]) == latestParameters) textures.push_back(r);
   }
   json v = json::array();
   for (auto& [k, j] : views) v.push_back(std::move(j));
@@ -438,7 +443,6 @@ struct Dashboard::Impl {
         } catch (const std::exception& e) {
           return error(res, 500, std::string("cannot read '") + name.substr(0, 256) + "': " + e.what());
         }
-        res.set_header("Cache-Control", "private, max-age=60");
       };
     };
     s.Get(R"(/api/jobs/([A-Za-z0-9._-]+)/file)", file(false));
@@ -461,22 +465,39 @@ struct Dashboard::Impl {
 
     // On loopback, only requests that name a loopback host: a web page elsewhere that points
     // its own name at 127.0.0.1 (DNS rebinding) gets nothing, tokens or not.
+    // Before any body is read: bodies are small JSON with a declared length (the largest it takes
+    // is a sign-in), so that nobody can make the server hold a large one, compressed or chunked.
+    // And on loopback, only requests that name a loopback host: a web page elsewhere that points
+    // its own name at 127.0.0.1 (DNS rebinding) gets nothing, tokens or not.
     s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      auto refuse = [&](int status, const std::string& why) {
+        error(res, status, why);
+        res.set_header("Connection", "close");  // an unread body must not be taken for the next request
+        return httplib::Server::HandlerResponse::Handled;
+      };
+      if (req.has_header("Transfer-Encoding") || req.has_header("Content-Encoding"))
+        return refuse(415, "send the body plain, with a Content-Length");
+      if (req.method != "GET" && req.method != "HEAD") {
+        if (!req.has_header("Content-Length")) return refuse(411, "a Content-Length is needed");
+        uint64_t length = 0;
+        const std::string v = req.get_header_value("Content-Length");
+        auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), length);
+        if (ec != std::errc() || end != v.data() + v.size() || length > kMaxBody) return refuse(413, "bodies are at most 64 KiB");
+      }
       if (!loopbackOnly) return httplib::Server::HandlerResponse::Unhandled;
       const std::string host = req.get_header_value("Host");
-      const std::string p = ":" + std::to_string(port);
+      const bool defaultPort = port == (opt.tlsCertPem.empty() ? 80 : 443);
       for (const char* h : {"127.0.0.1", "localhost", "[::1]"})
-        if (host == h + p) return httplib::Server::HandlerResponse::Unhandled;
-      error(res, 421, "this dashboard answers to 127.0.0.1, localhost or [::1] on port " + std::to_string(port) + " only");
-      return httplib::Server::HandlerResponse::Handled;
+        if (host == h + (":" + std::to_string(port)) || (defaultPort && host == h)) return httplib::Server::HandlerResponse::Unhandled;
+      return refuse(421, "this dashboard answers to 127.0.0.1, localhost or [::1] on port " + std::to_string(port) + " only");
     });
-    s.set_payload_max_length(64 * 1024);  // the largest body it takes is a sign-in
+    s.set_payload_max_length(kMaxBody);
 
     // Every answer: no framing, no sniffing, no referrer, scripts and styles from here only (a
     // name that slipped past the page's escaping still could not run), API answers not cached.
     s.set_post_routing_handler([](const httplib::Request& req, httplib::Response& res) {
       res.set_header("Content-Security-Policy",
-                     "default-src 'self'; img-src 'self' data: blob:; script-src 'self'; style-src 'self'; object-src 'none'; "
+                     "default-src 'self'; img-src 'self'; script-src 'self'; style-src 'self'; object-src 'none'; "
                      "base-uri 'none'; frame-ancestors 'none'; form-action 'self'");
       res.set_header("X-Content-Type-Options", "nosniff");
       res.set_header("X-Frame-Options", "DENY");
@@ -490,6 +511,7 @@ Dashboard::Dashboard(DashboardOptions options, const JobBook& book, const Schedu
     : impl_(std::make_unique<Impl>(std::move(options), book, scheduler, auth)) {
   Impl& d = *impl_;
   auto [host, port] = splitAddress(d.opt.address);
+  if (host == "localhost") host = "127.0.0.1";  // the name may resolve to ::1 first; the page is at 127.0.0.1
   const std::string hostPort = (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + std::to_string(port);
   d.loopbackOnly = wire::isLoopbackAddress(hostPort);
   if (!d.loopbackOnly && d.opt.tlsCertPem.empty()) {
@@ -509,6 +531,8 @@ Dashboard::Dashboard(DashboardOptions options, const JobBook& book, const Schedu
   d.port = port == 0 ? d.http->bind_to_any_port(host) : (d.http->bind_to_port(host, port) ? port : -1);
   if (d.port <= 0) throw InputError("--http-address " + d.opt.address + ": cannot listen there (address in use, or not a local address)");
   d.thread = std::thread([&d] { d.http->listen_after_bind(); });
+  // stop() does nothing until the listener runs: wait for it, so that a quick shutdown cannot hang.
+  for (int i = 0; i < 5000 && !d.http->is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
 Dashboard::~Dashboard() {

@@ -43,8 +43,9 @@ int main(int argc, char** argv) {
       ->check(invr::wire::kPositive);
   app.add_option("--metrics-address", o.metricsAddress, "serve Prometheus metrics at http://HOST:PORT/metrics (default: none)");
   app.add_option("--http-address", o.httpAddress,
-                 "serve the dashboard, a read-only web application and its JSON API, at http://HOST:PORT/ (a port alone: "
-                 "127.0.0.1; beyond loopback it needs --tls-cert/--tls-key (then https) and client tokens, or --insecure; default: none)");
+                 "serve the dashboard, a read-only web application and its JSON API, at HOST:PORT (a port alone: 127.0.0.1; "
+                 "https when --tls-cert/--tls-key are given; beyond loopback it needs them and client tokens, or --insecure; "
+                 "default: none)");
   app.add_option("--health-address", o.healthAddress,
                  "also serve the gRPC health service alone, in plaintext, on HOST:PORT (for probes that cannot do TLS)");
   std::string tlsCert, tlsKey, tlsClientCa, clientTokenFile, workerTokenFile;
@@ -53,8 +54,8 @@ int main(int argc, char** argv) {
   app.add_option("--tls-client-ca", tlsClientCa, "CA (PEM) whose certificates clients and workers must present (mutual TLS)");
   app.add_flag("--insecure", o.insecure, "allow plaintext on a non-loopback address (logs a warning)");
   app.add_option("--client-token-file", clientTokenFile,
-                 "bearer tokens clients may send, one per line: 'NAME TOKEN' or the token alone (named client); the name is shown as "
-                 "who submitted a job (default: $INVR_CLIENT_TOKEN; none: client API and dashboard unchecked)");
+                 "bearer tokens clients may send, one per line: 'NAME TOKEN' or the token alone (named client; one such line); the "
+                 "name is shown as who submitted a job (default: $INVR_CLIENT_TOKEN; none: client API and dashboard unchecked)");
   app.add_option("--worker-token-file", workerTokenFile,
                  "bearer token workers must send, different from the client token (default: $INVR_WORKER_TOKEN; none: worker API unchecked)");
   CLI11_PARSE(app, argc, argv);

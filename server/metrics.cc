@@ -71,6 +71,8 @@ MetricsEndpoint::MetricsEndpoint(const std::string& address, std::function<std::
   port_ = port == 0 ? impl_->http.bind_to_any_port(host) : (impl_->http.bind_to_port(host, port) ? port : -1);
   if (port_ <= 0) throw std::runtime_error("--metrics-address '" + address + "': cannot listen there");
   impl_->thread = std::thread([this] { impl_->http.listen_after_bind(); });
+  // stop() does nothing until the listener runs: wait for it, so that a quick shutdown cannot hang.
+  for (int i = 0; i < 5000 && !impl_->http.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
 MetricsEndpoint::~MetricsEndpoint() {

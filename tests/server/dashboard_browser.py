@@ -16,6 +16,7 @@ usage: dashboard_browser.py BIN_DIR OUT_DIR [--measure]
 the server's memory over a 1000-step job with its page open (against the same job unwatched).
 """
 import base64
+import http.client as httpclient
 import json
 import os
 import re
@@ -245,6 +246,17 @@ def main():
           "a request naming another host is refused (DNS rebinding)")
     check(http(base + "/api/login", "POST", b"x" * 200000, {"Content-Type": "application/json"})[0] == 413,
           "a sign-in body beyond 64 KiB is refused")
+    host, hport = base.split("//")[1].split(":")
+    for headers, want, what in ((("Transfer-Encoding", "chunked"),), 415, "a chunked body is refused before it is read"), \
+                               ((), 411, "a body without a Content-Length is refused"):
+        c = httpclient.HTTPConnection(host, int(hport), timeout=20)
+        c.putrequest("POST", "/api/login")
+        c.putheader("Content-Type", "application/json")
+        for k, v in headers:
+            c.putheader(k, v)
+        c.endheaders()
+        check(c.getresponse().status == want, what)
+        c.close()
     st, _, body = http(base + "/chart.min.js")
     check(st == 200 and b"Chart.js" in body[:200], "Chart.js is served from the binary")
 
