@@ -13,7 +13,7 @@ step; the workers page lists the worker. A screenshot of each page is saved unde
 
 usage: dashboard_browser.py BIN_DIR OUT_DIR [--measure]
 --measure adds the figures of docs/dashboard.md: the job list's load time with 100 jobs, and
-the server's memory over a 1000-step job with its page open (against the same job unwatched).
+the server's memory over a 3000-step job with its page open (against the same job unwatched).
 """
 import base64
 import http.client as httpclient
@@ -388,13 +388,14 @@ def measure(b):
           f"{sorted(times)[len(times) // 2]:.0f} ms, max {max(times):.0f} ms of 5 loads)")
     p.kill()
 
-    # 2. Memory over a 1000-step job, watched and unwatched.
+    # 2. Memory over a 3000-step job, watched and unwatched: the server's RSS every 500 steps while
+    # it runs (the final renders at the end take memory of their own, so the end is apart).
     for watched in (False, True):
         tag = "watched" if watched else "unwatched"
         p, grpc_addr, url = start_server(tag)
         w = start_worker(grpc_addr, tag + "-worker")
         job = json.loads(invr("example", "oxalis"))
-        job["optimization"]["steps"] = 1000
+        job["optimization"]["steps"] = 3000
         job["optimization"]["snapshot_every"] = 100
         jf = os.path.join(work, tag + ".json")
         json.dump(job, open(jf, "w"))
@@ -403,19 +404,20 @@ def measure(b):
             b.navigate(url)
             sign_in(b)
             b.navigate(url + "#/job/" + jid)
-        samples = []
+        marks = {}
         t0 = time.time()
         while True:
             st = api(url, "/api/jobs/" + jid)
-            samples.append((time.time() - t0, st["step"], rss_kb(p.pid)))
             if st["state"] not in ("queued", "running"):
                 break
-            time.sleep(2)
-        at = [next((s for s in samples if s[1] >= k), samples[-1]) for k in (100, 500)] + [samples[-1]]
-        print(f"measure: {tag}: {samples[-1][1]} steps in {samples[-1][0]:.0f} s; server RSS " +
-              ", ".join(f"{s[2] / 1024:.1f} MiB at step {s[1]}" for s in at) +
-              f"; growth from step {at[0][1]} to the end {(at[2][2] - at[0][2]) / 1024:.1f} MiB, from step {at[1][1]} "
-              f"{(at[2][2] - at[1][2]) / 1024:.1f} MiB")
+            marks.setdefault(st["step"] // 500 * 500, rss_kb(p.pid))
+            time.sleep(1)
+        marks.pop(0, None)
+        ks = sorted(marks)
+        print(f"measure: {tag}: 3000 steps in {time.time() - t0:.0f} s; server RSS while running: " +
+              ", ".join(f"step {k}: {marks[k] / 1024:.1f} MiB" for k in ks) +
+              f"; growth from step {ks[0]} to {ks[-1]}: {(marks[ks[-1]] - marks[ks[0]]) / 1024:.1f} MiB; after the final renders "
+              f"{rss_kb(p.pid) / 1024:.1f} MiB")
         b.navigate("about:blank")
         p.kill()
         w.kill()
