@@ -24,6 +24,7 @@ struct RenderArgs {
   int spp = 0;
   int maxDepth = 0;
   std::string estimator;
+  std::string sampler;
   int risCandidates = 0;
   int threads = 0;
   long long seed = -1;
@@ -43,6 +44,7 @@ void runRender(const RenderArgs& a) {
   if (a.seed >= 0) r->set_seed(uint64_t(a.seed));
   if (a.estimator == "pt") r->set_estimator(invr::v1::ESTIMATOR_PT);
   else if (a.estimator == "ris") r->set_estimator(invr::v1::ESTIMATOR_RIS);
+  if (!a.sampler.empty()) r->set_sampler(a.sampler);
   if (a.spp < 0) throw InputError("--spp: must be positive (got " + std::to_string(a.spp) + ")");
   RenderOptions opt = renderOptionsFrom(*r);
   auto scene = buildJobScene(job, assets);
@@ -65,7 +67,7 @@ void runRender(const RenderArgs& a) {
   }
   std::cout << "wrote " << std::filesystem::absolute(a.output).string() << " (" << scene->width << "x" << scene->height
             << ", view " << a.view << ", " << opt.spp << " spp, " << (opt.estimator == LightEstimator::Ris ? "ris" : "pt")
-            << ", max depth " << opt.maxDepth << ", " << res.seconds << " s, "
+            << ", max depth " << opt.maxDepth << ", " << samplerKindName(opt.sampler) << " sampler, " << res.seconds << " s, "
             << double(res.rays.total()) / res.seconds / 1e6 << " Mrays/s";
   if (res.nonFiniteSamples) std::cout << ", " << res.nonFiniteSamples << " non-finite samples dropped";
   std::cout << ")\n";
@@ -83,6 +85,8 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
   cmd->add_option("--max-depth", args->maxDepth, "path vertices after the camera; 1 = direct illumination");
   cmd->add_option("--estimator", args->estimator, "light sampling: pt (NEE + MIS) or ris (streaming RIS)")
       ->check(CLI::IsMember({"pt", "ris"}));
+  cmd->add_option("--sampler", args->sampler, "how a pixel's samples relate: independent or sobol (Owen-scrambled Sobol; default: the job's, else independent)")
+      ->check(CLI::IsMember({"independent", "sobol"}));
   cmd->add_option("--ris-candidates", args->risCandidates, "RIS candidates M (default 8)");
   cmd->add_option("--seed", args->seed, "random seed");
   cmd->add_option("--threads", args->threads, "worker threads (default: all cores)");

@@ -19,6 +19,7 @@ struct GradientsArgs {
   int edgeNeighbours = -1;  // shape jobs: edge reservoirs merged per sample; -1: the job's
   bool ablations = true;   // shape jobs: the per-term and edge-importance rows
   int targetSpp = 256;
+  std::string sampler;  // empty: the job's (optimization.sampler)
   std::vector<std::string> params;  // --param NAME[=V[,V,V]]: replaces the zoo job's parameters
   bool json = false;
 };

@@ -285,6 +285,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   addBenchFakeWorkerCommand(*bench, exitCode);
   addBenchPixelCommand(*bench, exitCode);
   addBenchVarianceCommand(*bench, exitCode);
+  addBenchSamplerCommand(*bench, exitCode);
 }
 
 }  // namespace invr::cli

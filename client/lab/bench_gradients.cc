@@ -98,6 +98,7 @@ BenchReport benchGradients(const GradientsArgs& a) {
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
   if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
   if (a.edgeNeighbours >= 0) s.problem.gradient.boundary.edgeNeighbours = a.edgeNeighbours;
+  if (!a.sampler.empty()) s.problem.gradient.sampler = samplerKindFromName(a.sampler, "--sampler");
   const auto views = viewsForStep(s.problem, 0);
   // Reference: not the method under test's own chain but independent RIS evaluations at high spp
   // (RIS is checked against finite differences in tests/core/diff), averaged in two halves.
@@ -129,6 +130,7 @@ BenchReport benchGradients(const GradientsArgs& a) {
   double budget = stepSeconds(s, GradientMethod::Restir, 1, 2);
   BenchReport rep("gradients");
   rep.text("scene", a.scene);
+  rep.text("sampler", samplerKindName(s.problem.gradient.sampler));
   rep.number("parameters", double(s.problem.params.size()));
   rep.number("restir_neighbours", s.problem.gradient.restir.neighbours);
   rep.number("restir_m_cap", s.problem.gradient.restir.mCap);
@@ -670,6 +672,8 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   g->add_option("--burn-in", ga->burnIn, "ReSTIR render-only steps before measuring")->capture_default_str();
   g->add_option("--ref-evaluations", ga->refEvaluations, "reference: independent RIS evaluations averaged (not the method under test)")->capture_default_str();
   g->add_option("--ref-spp", ga->refSpp, "reference: spp of each evaluation")->capture_default_str();
+  g->add_option("--sampler", ga->sampler, "every pass's sampler: independent or sobol (default: the job's)")
+      ->check(CLI::IsMember({"independent", "sobol"}));
   g->add_option("--neighbours", ga->neighbours, "ReSTIR neighbours (default: the scene job's)");
   g->add_option("--m-cap", ga->mCap, "ReSTIR confidence cap (default: the scene job's, 2 x M)");
   g->add_option("--radius-pixels", ga->radiusPixels, "ReSTIR neighbour radius in pixel footprints (default: the job's)");

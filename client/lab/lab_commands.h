@@ -12,6 +12,7 @@ void addBenchServiceCommand(CLI::App& bench, int& exitCode);
 void addBenchFakeWorkerCommand(CLI::App& bench, int& exitCode);
 void addBenchPixelCommand(CLI::App& bench, int& exitCode);
 void addBenchVarianceCommand(CLI::App& bench, int& exitCode);
+void addBenchSamplerCommand(CLI::App& bench, int& exitCode);  // bench sampler: independent against sobol
 void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
 
 }  // namespace invr::cli

@@ -21,6 +21,7 @@ bool AreaShadowBoundary::applies(const Scene& scene) {
 BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples, lightPoints = lightPoints_;
   const uint64_t stream = bv.stream, step = bv.step;
+  const SamplerKind samplerKind = bv.sampler;
   const Camera& cam = scene_.cameras[size_t(view)];
   std::vector<float> power(scene_.lights.size());
   for (size_t i = 0; i < power.size(); ++i) power[i] = emittedPower(scene_.lights[i]);
@@ -30,11 +31,12 @@ BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
   std::vector<LightPoint> points;
   std::vector<BorderSource> sources;
   for (int j = 0; j < lightPoints; ++j) {
-    Sampler s(RngKey{stream, step, uint64_t(view), uint64_t(j), 1});
+    Sampler s = Sampler::forSampleSet(samplerKind, RngKey{stream, step, uint64_t(view), uint64_t(j), 1});
     const uint32_t li = uint32_t(pickLight.sample(s.next1D()));
     const Light& l = scene_.lights[li];
     float remapped;
-    const float u = s.next1D(), v = s.next1D();
+    const Vec2 uv = s.next2D();
+    const float u = uv.x, v = uv.y;
     const uint32_t tri = uint32_t(l.triangles.sample(u, &remapped));
     const Vec2 bc = sampleUniformTriangle({remapped, v});
     const SurfaceHit y = scene_.surfaceAt(l.mesh, tri, bc.x, bc.y);
@@ -47,7 +49,7 @@ BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
       [&](uint32_t j, float fx, float fy, RayStats& rays) {
         return pointSourceRadiance(scene_, cam, fx, fy, scene_.lights[points[j].light], points[j], rays);
       },
-      stream, step, bv.scratch, bv.gradient, bv.cancel);
+      stream, step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
 }
 
 namespace {

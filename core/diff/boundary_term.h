@@ -93,6 +93,7 @@ struct BoundaryView {
   GradientScratchPool& scratch;
   std::vector<double>& gradient;
   const std::atomic<bool>* cancel = nullptr;
+  SamplerKind sampler = SamplerKind::Independent;  // GradientOptions::sampler
 };
 
 class BoundaryTerm {

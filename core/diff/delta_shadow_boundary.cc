@@ -26,7 +26,7 @@ BoundaryPassStats DeltaShadowBoundary::run(const BoundaryView& bv) {
   return sampleShadowBorders(
       scene_, params_, topology_, bv.view, bv.adjoint, bv.samples, sources,
       [&](uint32_t j, float fx, float fy, RayStats& rays) { return deltaSourceRadiance(scene_, cam, fx, fy, *lights[j], rays); }, bv.stream,
-      bv.step, bv.scratch, bv.gradient, bv.cancel);
+      bv.step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
 }
 
 namespace {

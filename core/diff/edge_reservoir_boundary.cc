@@ -198,6 +198,8 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
   const float maxM = settings_.maxM * float(settings_.candidates);
 
   runBoundarySamples(samples, scratchPool, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
+    // Independent whatever the job's sampler: these samples become edge reservoirs that later
+    // steps resample together, which needs independent inputs (InteriorEstimator::stratifiable).
     Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
     EdgeReservoir& r = created[base + size_t(i)];
     float t = 0.f;
@@ -252,7 +254,8 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
       c.light = uint32_t(pickLight_.sample(sampler.next1D()));
       const Light& l = scene_.lights[c.light];
       float remapped;
-      const float u = sampler.next1D(), v = sampler.next1D();
+      const Vec2 uv = sampler.next2D();
+      const float u = uv.x, v = uv.y;
       c.tri = uint32_t(l.triangles.sample(u, &remapped));
       const Vec2 bc = sampleUniformTriangle({remapped, v});
       c.b0 = bc.x;

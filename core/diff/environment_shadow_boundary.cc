@@ -20,6 +20,7 @@ bool EnvironmentShadowBoundary::applies(const Scene& scene) {
 BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples, directions = directions_;
   const uint64_t stream = bv.stream, step = bv.step;
+  const SamplerKind samplerKind = bv.sampler;
   const Camera& cam = scene_.cameras[size_t(view)];
   std::vector<uint32_t> environments;
   for (uint32_t i = 0; i < scene_.lights.size(); ++i)
@@ -30,9 +31,10 @@ BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
   std::vector<LightSample> dirs;
   std::vector<BorderSource> sources;
   for (int j = 0; j < directions; ++j) {
-    Sampler s(RngKey{stream, step, uint64_t(view), uint64_t(j), 1});
+    Sampler s = Sampler::forSampleSet(samplerKind, RngKey{stream, step, uint64_t(view), uint64_t(j), 1});
     const uint32_t li = environments[std::min(environments.size() - 1, size_t(s.next1D() * float(environments.size())))];
-    const float u = s.next1D(), v = s.next1D();
+    const Vec2 uv = s.next2D();
+    const float u = uv.x, v = uv.y;
     dirs.push_back(sampleLight(scene_.lights[li], scene_, Vec3(0.f), Vec2(u, v), li));
     // Solid-angle density of w_j (environment choice included) over the pass's draws.
     const double pdf = double(dirs.back().pdf) / double(environments.size());
@@ -42,7 +44,7 @@ BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
   return sampleShadowBorders(
       scene_, params_, topology_, view, bv.adjoint, samples, sources,
       [&](uint32_t j, float fx, float fy, RayStats& rays) { return directionalSourceRadiance(scene_, cam, fx, fy, dirs[j], rays); }, stream,
-      step, bv.scratch, bv.gradient, bv.cancel);
+      step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
 }
 
 namespace {

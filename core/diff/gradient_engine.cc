@@ -209,6 +209,7 @@ void GradientEngine::primalPass(Step& s) {
     spec.kind = PassKind::Primal;
     spec.view = view;
     spec.stream = streamSeed(req.seed, kPrimalStream);
+    spec.sampler = opt_.sampler;
     spec.step = req.step;
     spec.spp = opt_.sppPrimal;
     spec.batch = s.batchOf(k);
@@ -251,6 +252,7 @@ void GradientEngine::derivativePass(Step& s) {
       spec.kind = req.renderOnly ? PassKind::Primal : PassKind::Derivative;
       spec.view = view;
       spec.stream = streamSeed(req.seed, kDerivativeStream);
+      spec.sampler = opt_.sampler;
       spec.step = req.step;
       spec.spp = opt_.sppGradient;
       spec.batch = s.batchOf(k);
@@ -293,7 +295,7 @@ void GradientEngine::boundaryPasses(Step& s) {
     for (size_t t = 0; t < terms.size(); ++t) {
       Stopwatch termClock;
       const BoundaryView bv{view, s.adjoints[k], *estimator, samples, streamSeed(req.seed, boundaryTerms_[t]->stream), req.step,
-                            *scratch_, s.out.gradient, req.cancel};
+                            *scratch_, s.out.gradient, req.cancel, opt_.sampler};
       const BoundaryPassStats b = terms[t]->run(bv);
       totals[t].candidateEdges += b.candidateEdges;
       totals[t].samples += b.samples;
@@ -343,6 +345,7 @@ void GradientEngine::variancePass(Step& s) {
     spec.kind = PassKind::Variance;
     spec.view = view;
     spec.stream = streamSeed(req.seed, kVarianceStream);
+    spec.sampler = opt_.sampler;
     spec.step = req.step;
     spec.spp = opt_.variance.spp;
     spec.batch = s.batchOf(k);
@@ -472,6 +475,7 @@ Image GradientEngine::sampleVarianceMap(int view, int spp, uint64_t seed, const 
   spec.squares = true;
   spec.view = view;
   spec.stream = streamSeed(seed, kVarianceMapStream);
+  spec.sampler = opt_.sampler;
   spec.spp = spp;
   spec.cancel = cancel;
   PassOutput pr = runPass(scene_, *estimator, spec, *scratch_);
@@ -516,6 +520,7 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req, SampleDro
   spec.kind = PassKind::Primal;
   spec.view = view;
   spec.stream = streamSeed(req.seed, kStage1PrimalStream);
+  spec.sampler = opt_.sampler;
   spec.step = req.step;
   spec.batch = &cellPixels;
   spec.cancel = req.cancel;
@@ -527,6 +532,7 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req, SampleDro
   // Squared parameter derivatives of one sample per cell (Eq. 16), with a unit adjoint.
   spec.kind = PassKind::Stage1;
   spec.stream = streamSeed(req.seed, kStage1DerivativeStream);
+  spec.sampler = opt_.sampler;
   PassOutput deriv = runPass(scene_, *estimator, spec, *scratch_);
   drops += primal.drops;
   drops += deriv.drops;

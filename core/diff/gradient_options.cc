@@ -39,6 +39,7 @@ GradientOptions parseGradientOptions(const v1::OptimizationSpec& o, int width, i
     fail("loss", e.what());
   }
   g.sppPrimal = count("spp_primal", o.spp_primal(), defaults.sppPrimal, 4096);
+  g.sampler = samplerKindFromName(o.sampler(), "optimization.sampler");
   g.sppGradient = count("spp_gradient", o.spp_gradient(), defaults.sppGradient, 4096);
   g.restir.candidates = count("ris_candidates", o.ris_candidates(), defaults.restir.candidates, 4096);
   g.restir.visibilityInTarget = !o.ris_target_without_visibility();

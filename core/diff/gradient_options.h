@@ -32,6 +32,9 @@ struct GradientOptions {
   // Look for ReSTIR neighbours among last step's pixels first when last step rendered the view
   // (see ReSTIR's estimator); false always searches the kd-tree (tests and benchmarks of that path).
   bool pixelNeighbours = true;
+  // How a pixel's samples relate in every render and pass of the job (rng.h): independent or
+  // sobol.
+  SamplerKind sampler = SamplerKind::Independent;
   int sppPrimal = 1;
   int sppGradient = 1;
   LossKind loss = LossKind::L2;

@@ -49,6 +49,13 @@ class InteriorEstimator {
     (void)in, (void)sampler, (void)counters, (void)weights, (void)grad;
     throw std::logic_error("this estimator has no variance derivatives");
   }
+  // Whether the samples of a pixel may be stratified together (the sobol sampler). Not when the
+  // estimator resamples them together later (ReSTIR's reservoirs): resampling with MIS weights
+  // that depend on the other inputs is unbiased for independent inputs only. (Measured: with
+  // stratified ReSTIR an area light's intensity derivative came out 1.6 % below finite
+  // differences over five seed sets, against 0.6 % independent and 1.0 % for RIS either way; the
+  // tests cannot separate that from noise, so the theory decides.)
+  virtual bool stratifiable() const { return true; }
 };
 
 // What an estimator is built from, once per pass (one view).

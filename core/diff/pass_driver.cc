@@ -56,6 +56,7 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
   if (squares) res.secondMoment = Image(W, H, 3);
   std::mutex mergeMutex;
   std::atomic<bool> cancelled{false};
+  const SamplerKind samplerKind = estimator.stratifiable() ? spec.sampler : SamplerKind::Independent;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, tilesX * tilesY), [&](const tbb::blocked_range<int>& range) {
     SampleCounters counters;
@@ -96,9 +97,10 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
             in.y = y;
             in.pixel = pixel;
             in.slot = sample % spp;
-            Sampler sampler(RngKey::withSample(pixelHash, uint64_t(sample)));
+            Sampler sampler = Sampler::forSample(samplerKind, pixelHash, uint64_t(sample));
             in.o = cam.eye;
-            in.d = cam.direction(float(x) + sampler.next1D(), float(y) + sampler.next1D(), W, H);
+            const Vec2 film = sampler.next2D();  // y drawn first: the independent streams' order before 2D draws
+            in.d = cam.direction(float(x) + film.y, float(y) + film.x, W, H);
             const size_t mark = pixelGrad.size();
             Rgb v = variance ? estimator.varianceSample(in, sampler, counters, vw, pixelGrad)
                              : estimator.sample(in, sampler, counters, adjoint, grad, slots && sample < spp ? &slots[in.slot] : nullptr);

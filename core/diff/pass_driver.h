@@ -30,6 +30,7 @@ struct PassSpec {
   uint64_t stream = 0;  // streamSeed(job seed, which pass): passes never share random numbers
   uint64_t step = 0;
   int spp = 1;
+  SamplerKind sampler = SamplerKind::Independent;  // how a pixel's samples relate (rng.h)
   const PixelBatch* batch = nullptr;  // null: every pixel once
   const Image* adjoint = nullptr;     // Derivative: dL/dI per pixel and channel; Variance: dL/dV
   const Image* mean = nullptr;        // Variance: an independent estimate of each pixel (the primal render)

@@ -77,6 +77,7 @@ PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& pa
 BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples;
   const uint64_t stream = bv.stream, step = bv.step;
+  const SamplerKind samplerKind = bv.sampler;
   const Image& adjoint = bv.adjoint;
   const InteriorEstimator& estimator = bv.estimator;
   const Camera& cam = scene_.cameras[size_t(view)];
@@ -133,7 +134,7 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   const float total = float(weightSum);
 
   runBoundarySamples(samples, bv.scratch, bv.gradient, bv.cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
-    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+    Sampler sampler = Sampler::forSampleSet(samplerKind, RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
     float u = 0.f;
     const size_t picked = pick.sample(sampler.next1D(), &u);
     const FilmEdge& e = edges[picked];

@@ -47,6 +47,8 @@ class RestirEstimator final : public InteriorEstimator {
     }
   }
 
+  bool stratifiable() const override { return false; }  // its reservoirs are resampled together
+
   Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
              StoredReservoir* reservoir) const override {
     PathContext ctx{&counters.rays, nullptr};

@@ -113,7 +113,7 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
 BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
                                       int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
                                       const BorderSourceRadiance& radiance, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
-                                      std::vector<double>& gradient, const std::atomic<bool>* cancel) {
+                                      std::vector<double>& gradient, const std::atomic<bool>* cancel, SamplerKind samplerKind) {
   const Camera& cam = scene.cameras[size_t(view)];
   BoundaryPassStats st;
   std::vector<ShadowEdge> edges;
@@ -125,7 +125,7 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
   const Distribution1D pick(weights);
 
   runBoundarySamples(samples, scratch, gradient, cancel, st, [&](int i, SampleCounters& counters, PathGradient& grad) {
-    Sampler sampler(RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
+    Sampler sampler = Sampler::forSampleSet(samplerKind, RngKey{stream, step, uint64_t(view), uint64_t(i), 0});
     float t = 0.f;
     const size_t k = pick.sample(sampler.next1D(), &t);
     const ShadowEdge& se = edges[k];

@@ -113,7 +113,8 @@ using BorderSourceRadiance = std::function<Rgb(uint32_t source, float fx, float 
 BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
                                       int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
                                       const BorderSourceRadiance& radiance, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
-                                      std::vector<double>& gradient, const std::atomic<bool>* cancel);
+                                      std::vector<double>& gradient, const std::atomic<bool>* cancel,
+                                      SamplerKind samplerKind = SamplerKind::Independent);
 
 // What the environment's direction `ls.wi` (radiance ls.radiance, dist infinite) adds to the film
 // sample through (fx, fy): f |cos| Le, visibility included (per unit solid angle).

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/io/job_json_normalize.h"
 #include "core/limits.h"
+#include "core/math/rng.h"
 
 namespace invr {
 
@@ -109,6 +110,7 @@ void validateRenderSettings(const invr::v1::RenderSettings& r, const std::string
   if (r.max_depth() < 0 || r.max_depth() > 1024) bad("max_depth", "must be in 1..1024 (got " + std::to_string(r.max_depth()) + ")");
   if (r.ris_candidates() < 0 || r.ris_candidates() > 4096) bad("ris_candidates", "must be in 1..4096 (got " + std::to_string(r.ris_candidates()) + ")");
   if (r.russian_roulette_depth() < 0) bad("russian_roulette_depth", "must not be negative");
+  samplerKindFromName(r.sampler(), path + ".sampler");
 }
 
 namespace {

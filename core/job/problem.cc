@@ -284,6 +284,7 @@ RenderOptions transportRenderOptions(const Problem& p, int spp, StreamId stream)
     ro.estimator = LightEstimator::NeeMis;
   }
   ro.seed = streamSeed(p.seed, stream);
+  ro.sampler = p.gradient.sampler;
   return ro;
 }
 

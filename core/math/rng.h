@@ -4,6 +4,10 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+
+#include "core/math/sobol.h"
+#include "core/math/vec.h"
 
 namespace invr {
 
@@ -48,25 +52,110 @@ struct RngKey {
   constexpr uint64_t hash() const { return withSample(pixelHash(), sample); }
 };
 
-// A stream of uniforms for one key. Dimension d of key k is mix64(hash(k) + d * golden):
-// random access, no state shared between threads.
+// How the values of a pixel's samples relate to each other. Independent: every value is its own
+// hash. Sobol: sample i of a pixel is point i of an Owen-scrambled Sobol sequence, one shuffled
+// 2D sequence per slot (see SampleDomain), so a pixel's samples stratify every 1D and 2D draw.
+// Both are counter-based; each value on its own is uniform, so every estimator stays unbiased.
+enum class SamplerKind : uint8_t { Independent, Sobol };
+const char* samplerKindName(SamplerKind kind);
+// "independent" or "sobol" (empty: independent); throws InputError naming `field` otherwise.
+SamplerKind samplerKindFromName(const std::string& name, const std::string& field);
+
+// Where a camera sample's values go. A purpose opens its domain before it draws, and its k-th draw
+// takes slot k of that domain; two samples of a pixel that draw for the same purpose therefore
+// use the same slots (which is what the sobol sampler stratifies across samples), and a purpose
+// drawing a varying number of values cannot shift the slots of the others. A new estimator
+// declares its own domain here rather than reusing another's.
+struct SampleDomain {
+  uint32_t value;
+  static constexpr SampleDomain camera() { return {0}; }  // the position on the film (one 2D draw)
+  // Per path vertex (depth 0 is the first hit): the direct-light strategy (light choice, light
+  // point, each RIS candidate), the BSDF sample, Russian roulette.
+  static constexpr SampleDomain directLight(int depth) { return {1u + 3u * uint32_t(depth)}; }
+  static constexpr SampleDomain bsdf(int depth) { return {2u + 3u * uint32_t(depth)}; }
+  static constexpr SampleDomain roulette(int depth) { return {3u + 3u * uint32_t(depth)}; }
+  // A boundary term's sample (edge, side, light point): one sample per boundary sample index.
+  static constexpr SampleDomain boundary() { return {0xfffffu}; }
+};
+
+// A stream of uniforms for one key. Independent: dimension d of key k is
+// mix64(hash(k) + d * golden), with random access and no state shared between threads.
 class Sampler {
  public:
   Sampler() = default;
   explicit Sampler(const RngKey& key) : base_(key.hash()) {}
   explicit Sampler(uint64_t base) : base_(base) {}
+  // Sample `sample` of the pixel (or boundary term) whose RngKey::pixelHash is `pixelHash`.
+  static Sampler forSample(SamplerKind kind, uint64_t pixelHash, uint64_t sample) {
+    if (kind == SamplerKind::Independent) return Sampler(RngKey::withSample(pixelHash, sample));
+    Sampler s(mix64(pixelHash ^ 0x5851f42d4c957f2dull));  // every sample of the pixel: one scramble
+    s.kind_ = SamplerKind::Sobol;
+    s.index_ = uint32_t(sample);
+    return s;
+  }
 
-  uint64_t nextBits() { return mix64(base_ + (dim_++) * 0x9e3779b97f4a7c15ull); }
+  // Sample key.pixel of a set of samples not tied to pixels (a boundary term's samples in one view):
+  // the key itself when independent; for sobol, point key.pixel of one sequence per (seed, step,
+  // view, sample) of the key, its draws in the boundary domain.
+  static Sampler forSampleSet(SamplerKind kind, const RngKey& key) {
+    if (kind == SamplerKind::Independent) return Sampler(key);
+    Sampler s = forSample(kind, RngKey{key.seed, key.step, key.view, ~key.sample, 0}.pixelHash(), key.pixel);
+    s.beginDomain(SampleDomain::boundary());
+    return s;
+  }
+
+  // Opens a domain: the next draws take its slots from the first (sobol); independent streams
+  // need no alignment and keep drawing in order.
+  void beginDomain(SampleDomain d) {
+    if (kind_ == SamplerKind::Sobol) dim_ = uint64_t(d.value) << 24;
+  }
+
+  uint64_t nextBits() {
+    if (kind_ == SamplerKind::Sobol) return uint64_t(sobolSlot(nullptr)) << 32;
+    return mix64(base_ + (dim_++) * 0x9e3779b97f4a7c15ull);
+  }
   // Uniform in [0, 1): the top 24 bits give exactly representable floats below 1.
-  float next1D() { return float(nextBits() >> 40) * 0x1p-24f; }
+  float next1D() {
+    if (kind_ == SamplerKind::Sobol) return sobol::toFloat(sobolSlot(nullptr));
+    return float(nextBits() >> 40) * 0x1p-24f;
+  }
   double next1Dd() { return double(nextBits() >> 11) * 0x1p-53; }
+  // Two values drawn together (a point on a light, a BSDF direction, a film position): one 2D slot
+  // of the sobol sampler, two draws in order of the independent one.
+  Vec2 next2D() {
+    if (kind_ == SamplerKind::Sobol) {
+      uint32_t y = 0;
+      uint32_t x = sobolSlot(&y);
+      return {sobol::toFloat(x), sobol::toFloat(y)};
+    }
+    float x = next1D();
+    return {x, next1D()};
+  }
   uint64_t dimension() const { return dim_; }
-  // A child stream for a sub-task (e.g. one RIS candidate) that cannot collide with this one.
-  Sampler fork(uint64_t tag) const { return Sampler(mix64(base_ ^ mix64(tag + 0x632be59bd9b4e019ull))); }
+  SamplerKind kind() const { return kind_; }
+  // A child stream for a sub-task (e.g. one RIS candidate) that cannot collide with this one. A
+  // sobol child keeps the sample index: the children of a pixel's samples stratify together.
+  Sampler fork(uint64_t tag) const {
+    Sampler s(mix64(base_ ^ mix64(tag + 0x632be59bd9b4e019ull)));
+    s.kind_ = kind_;
+    s.index_ = index_;
+    return s;
+  }
 
  private:
+  // The next slot's point: dimension 0 (and dimension 1 into *second), both scrambled, at the
+  // sample index shuffled for this slot.
+  uint32_t sobolSlot(uint32_t* second) {
+    const uint64_t h = mix64(base_ + (dim_++) * 0x9e3779b97f4a7c15ull);
+    const uint32_t i = sobol::nestedScramble(index_, h);
+    if (second) *second = sobol::nestedScramble(sobol::dimension1(i), mix64(h ^ 0xd6e8feb86659fd93ull));
+    return sobol::nestedScramble(sobol::dimension0(i), mix64(h + 0x2545f4914f6cdd1dull));
+  }
+
   uint64_t base_ = 0;
   uint64_t dim_ = 0;
+  uint32_t index_ = 0;
+  SamplerKind kind_ = SamplerKind::Independent;
 };
 
 }  // namespace invr

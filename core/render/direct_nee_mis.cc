@@ -6,7 +6,8 @@ bool sampleDirectNee(const Scene& scene, const ShadingPoint& sp, Sampler& sample
                      const float* lightPmf, int* chosen) {
   if (scene.lights.empty()) return false;
   float uSel = sampler.next1D();
-  Vec2 u2(sampler.next1D(), sampler.next1D());
+  const Vec2 d2 = sampler.next2D();
+  const Vec2 u2(d2.y, d2.x);  // y drawn first: the independent streams' order before 2D draws
   size_t li = lightPmf ? sampleSmallPmf(lightPmf, scene.lights.size(), uSel) : scene.lightSelection().sample(uSel);
   float pmf = lightPmf ? lightPmf[li] : scene.lightSelection().pmf(li);
   if (chosen) *chosen = int(li);

@@ -15,7 +15,8 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
   Rgb freshF(0.f);
   for (int m = 0; m < candidates; ++m) {
     float uSel = sampler.next1D();
-    Vec2 u2(sampler.next1D(), sampler.next1D());
+    const Vec2 d2 = sampler.next2D();
+    const Vec2 u2(d2.y, d2.x);  // y drawn first: the independent streams' order before 2D draws
     float uPick = sampler.next1D();
     size_t li = scene.lightSelection().sample(uSel);
     float pmf = scene.lightSelection().pmf(li);

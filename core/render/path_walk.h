@@ -112,6 +112,7 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
     if (!bsdf.isDelta()) {
       DirectPath p;
       const uint64_t shadowBefore = ctx && ctx->stats ? ctx->stats->shadow : 0;
+      sampler.beginDomain(SampleDomain::directLight(depth));
       if (direct(sp, depth, sampler, ctx, p)) v.direct(beta, p, vx);
       if (ctx && ctx->stats) ctx->stats->byDepth[depth] += ctx->stats->shadow - shadowBefore;
     }
@@ -119,8 +120,10 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
     // after delta lobes; without MIS the direct strategy covers what rough lobes see.
     if (depth + 1 >= s.maxDepth && !s.bsdfMis && !bsdf.isDelta()) return;
 
+    sampler.beginDomain(SampleDomain::bsdf(depth));
     float uc = sampler.next1D();
-    Vec2 u(sampler.next1D(), sampler.next1D());
+    const Vec2 u2 = sampler.next2D();
+    const Vec2 u(u2.y, u2.x);  // y drawn first: the independent streams' order before 2D draws
     auto bs = bsdf.sample(sp.wo, uc, u);
     if (!bs) {
       if (!bsdf.isDelta()) rejected(vx, uc, u);
@@ -143,6 +146,7 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
     auto roulette = [&](float q, bool survived, int channel) {
       if constexpr (requires { v.roulette(q, survived, channel, depth); }) v.roulette(q, survived, channel, depth);
     };
+    sampler.beginDomain(SampleDomain::roulette(depth));
     if (!survival.empty()) {  // fixed survival per bounce (bounce depth + 1)
       float q = survival[std::min(size_t(depth), survival.size() - 1)];
       if (q < 1.f) {

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/math/rng.h"
 #include "core/math/vec.h"
 
 namespace invr {
@@ -21,6 +22,7 @@ struct RenderOptions {
   bool risVisibilityInTarget = false;
   int russianRouletteDepth = 3;
   uint64_t seed = 0;
+  SamplerKind sampler = SamplerKind::Independent;  // how a pixel's samples relate (rng.h)
   // Checked every 256 samples of a pixel: when it becomes true, renderView throws
   // EvaluationCancelled.
   const std::atomic<bool>* cancel = nullptr;

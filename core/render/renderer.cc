@@ -57,8 +57,9 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
             cancelled = true;
             return;
           }
-          Sampler sampler(RngKey::withSample(pixelHash, uint64_t(s)));
-          float fx = float(x) + sampler.next1D(), fy = float(y) + sampler.next1D();
+          Sampler sampler = Sampler::forSample(opt.sampler, pixelHash, uint64_t(s));
+          const Vec2 film = sampler.next2D();
+          const float fx = float(x) + film.x, fy = float(y) + film.y;
           Rgb L = pathRadiance(scene, cam.eye, cam.direction(fx, fy, W, H), sampler, opt, &ctx);
           if (!isFinite(L)) { ++bad; continue; }
           acc[0] += L.x; acc[1] += L.y; acc[2] += L.z;
@@ -111,6 +112,7 @@ RenderOptions renderOptionsFrom(const invr::v1::RenderSettings& r) {
   o.risVisibilityInTarget = r.ris_visibility_in_target();
   o.russianRouletteDepth = r.russian_roulette_depth() > 0 ? r.russian_roulette_depth() : 3;
   o.seed = r.seed();
+  o.sampler = samplerKindFromName(r.sampler(), "render.sampler");
   return o;
 }
 

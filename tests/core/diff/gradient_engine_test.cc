@@ -34,10 +34,23 @@ Fixture& fixture() {
   return f;
 }
 
-void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeighbours = true) {
+// One session of two steps (seed 9) on view 0: the second step's gradient.
+std::vector<double> secondStepGradient(GradientEngine& engine) {
+  EngineSession s;
+  GradientRequest r;
+  r.views = {0};
+  r.seed = 9;
+  engine.evaluate(r, s);
+  r.step = 1;
+  return engine.evaluate(r, s).gradient;
+}
+
+void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeighbours = true,
+                 SamplerKind sampler = SamplerKind::Independent) {
   Fixture& f = fixture();
   GradientOptions o;
   o.method = method;
+  o.sampler = sampler;
   o.forwardOnly = forwardOnly;
   o.pixelNeighbours = pixelNeighbours;
   o.sppPrimal = 4;
@@ -84,6 +97,25 @@ TEST(GradientEngine, RestirMatchesFiniteDifferences) { checkMethod(GradientMetho
 TEST(GradientEngine, RestirForwardOnlyMatchesFiniteDifferences) { checkMethod(GradientMethod::Restir, true); }
 // Neighbours from the kd-tree only (what multi-view batches use), instead of last step's pixels.
 TEST(GradientEngine, RestirKdTreeNeighboursMatchFiniteDifferences) { checkMethod(GradientMethod::Restir, false, false); }
+// Stratified samples (each session's pixels get their own scramble): still unbiased.
+TEST(GradientEngine, PtWithSobolSamplesMatchesFiniteDifferences) { checkMethod(GradientMethod::Pt, false, true, SamplerKind::Sobol); }
+TEST(GradientEngine, RisWithSobolSamplesMatchesFiniteDifferences) { checkMethod(GradientMethod::Ris, false, true, SamplerKind::Sobol); }
+// ReSTIR resamples a pixel's samples together, which needs them independent: its passes keep
+// independent samples under the sobol sampler (InteriorEstimator::stratifiable), to the bit.
+TEST(GradientEngine, RestirPassesKeepIndependentSamplesUnderSobol) {
+  Fixture& f = fixture();
+  std::vector<std::vector<double>> results;
+  for (SamplerKind sampler : {SamplerKind::Independent, SamplerKind::Sobol}) {
+    GradientOptions o;
+    o.method = GradientMethod::Restir;
+    o.sppGradient = 4;
+    o.sampler = sampler;
+    GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+    f.reg.write(f.theta, *f.scene);
+    results.push_back(secondStepGradient(engine));
+  }
+  EXPECT_EQ(results[0], results[1]);
+}
 
 // ReSTIR reuses reservoirs created at earlier parameters: the support test and the combination
 // must stay unbiased when theta changes every step, and where neighbours have different supports
@@ -157,26 +189,23 @@ TEST(GradientEngine, RestirCheckSeesTheBiasOfAZeroBound) {
 }
 
 TEST(GradientEngine, DeterministicForAnyThreadCount) {
-  Fixture& f = fixture();
-  GradientOptions o;
-  o.method = GradientMethod::Restir;
-  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
-  f.reg.write(f.theta, *f.scene);
-  std::vector<std::vector<double>> results;
-  for (int threads : {1, 2, 3}) {
-    tbb::task_arena arena(threads);
-    arena.execute([&] {
-      EngineSession s;
-      GradientRequest r;
-      r.views = {0};
-      r.seed = 9;
-      engine.evaluate(r, s);
-      r.step = 1;
-      results.push_back(engine.evaluate(r, s).gradient);
-    });
+  // ReSTIR with independent samples; PT with 4 stratified samples per pixel.
+  for (auto [method, sampler] : {std::pair{GradientMethod::Restir, SamplerKind::Independent}, std::pair{GradientMethod::Pt, SamplerKind::Sobol}}) {
+    Fixture& f = fixture();
+    GradientOptions o;
+    o.method = method;
+    o.sampler = sampler;
+    o.sppGradient = sampler == SamplerKind::Sobol ? 4 : 1;
+    GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+    f.reg.write(f.theta, *f.scene);
+    std::vector<std::vector<double>> results;
+    for (int threads : {1, 2, 3}) {
+      tbb::task_arena arena(threads);
+      arena.execute([&] { results.push_back(secondStepGradient(engine)); });
+    }
+    EXPECT_EQ(results[0], results[1]) << samplerKindName(sampler);
+    EXPECT_EQ(results[0], results[2]) << samplerKindName(sampler);
   }
-  EXPECT_EQ(results[0], results[1]);
-  EXPECT_EQ(results[0], results[2]);
 }
 
 TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {

@@ -252,6 +252,10 @@ TEST(ShapeGradient, CardMovingUnderAPointLight) {
   const MeanSE fdX = validatedFd(c, 0, 0.01f, "card x, point light");
   for (GradientMethod m : {GradientMethod::Pt, GradientMethod::Ris, GradientMethod::Restir})
     expectMatches(run(c, 0, fdX, shapeOptions(m), 96, gradientMethodName(m)), gradientMethodName(m));
+  // Stratified samples: the interior passes and the primary and shadow-border terms' samples.
+  GradientOptions sobol = shapeOptions(GradientMethod::Pt);
+  sobol.sampler = SamplerKind::Sobol;
+  expectMatches(run(c, 0, fdX, sobol, 96, "pt, sobol samples"), "pt, sobol samples");
   // Ablation: without the primary term the silhouette's share is missing.
   GradientOptions noPrimary = shapeOptions(GradientMethod::Pt);
   noPrimary.boundary.primary = false;
@@ -285,6 +289,10 @@ TEST(ShapeGradient, CardMovingUnderASmallAreaLight) {
   const MeanSE fdX = validatedFd(c, 0, 0.01f, "card x, area light");
   for (GradientMethod m : {GradientMethod::Pt, GradientMethod::Ris})
     expectMatches(run(c, 0, fdX, shapeOptions(m), 96, gradientMethodName(m)), gradientMethodName(m));
+  // Stratified samples, the area light's border points among them.
+  GradientOptions sobol = shapeOptions(GradientMethod::Ris);
+  sobol.sampler = SamplerKind::Sobol;
+  expectMatches(run(c, 0, fdX, sobol, 96, "ris, sobol samples"), "ris, sobol samples");
 }
 
 // Under an environment the shadow borders are an integral over the sky's directions
