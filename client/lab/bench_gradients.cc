@@ -107,7 +107,9 @@ BenchReport benchGradients(const GradientsArgs& a) {
   // reference it would cancel.
   auto reference = [&](uint64_t seed, double* noiseFloor) {
     std::vector<double> ref(s.problem.params.size(), 0.0), half(s.problem.params.size(), 0.0);
-    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, optionsFor(s.problem, GradientMethod::Ris, a.refSpp));
+    GradientOptions refOptions = optionsFor(s.problem, GradientMethod::Ris, a.refSpp);
+    refOptions.sampler = SamplerKind::Independent;  // one reference whatever --sampler says
+    GradientEngine engine(*s.problem.scene, s.problem.params, s.targets, refOptions);
     for (int i = 0; i < a.refEvaluations; ++i) {
       EngineSession session;
       GradientRequest r;

@@ -6,8 +6,9 @@
 // all pixels and over the pixels inside regions (3x3 neighbourhoods with one first-hit surface:
 // the same normal and albedo and depth within 2 %, so silhouettes and material edges are out;
 // shadow borders stay in). Each sampler renders at 1, 2, 4, ... spp (the fastest of --repeats
-// interleaved runs is its time); the target is the independent sampler's error at --target-spp;
-// each sampler's time to reach it is interpolated on its error-against-time curve in log-log.
+// runs, interleaved with the other sampler's, is its time); the target is the independent
+// sampler's error at --target-spp; the spp at which each sampler reaches it is interpolated on
+// its error-against-spp curve in log-log, and its time at that spp on its time-against-spp curve.
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -78,19 +79,31 @@ double mse(const Image& a, const Image& b, const std::vector<uint8_t>* mask) {
   return n ? s / double(n) : std::numeric_limits<double>::quiet_NaN();
 }
 
-// Time at which the curve's MSE reaches `target`, interpolated in log-log between the measured
-// renders around it; before the first render, MSE proportional to 1/time (Monte Carlo's rate at
-// worst); past the last, the last segment's slope. NaN if the curve never falls.
-double timeToReach(const std::vector<double>& t, const std::vector<double>& e, double target) {
+// Samples per pixel at which the curve's MSE reaches `target`: log-log interpolation between the
+// renders around it, the last segment's slope past the last; never fewer than the first render's
+// (no render has fewer), and a render whose error is below the reference's own reaches it. NaN
+// if the error never falls.
+double sppToReach(const std::vector<int>& spp, const std::vector<double>& e, double target) {
   if (!(target > 0)) return std::numeric_limits<double>::quiet_NaN();
-  if (e[0] <= target) return t[0] * e[0] / target;
+  if (e[0] <= target) return spp[0];
   for (size_t i = 1; i < e.size(); ++i) {
     if (e[i] > target && i + 1 < e.size()) continue;
-    if (!(e[i] > 0) || !(e[i] < e[i - 1])) return std::numeric_limits<double>::quiet_NaN();
-    const double slope = std::log(e[i] / e[i - 1]) / std::log(t[i] / t[i - 1]);  // d log e / d log t
-    return t[i - 1] * std::exp(std::log(target / e[i - 1]) / slope);
+    if (!(e[i] > 0)) return spp[i];
+    if (!(e[i] < e[i - 1])) return std::numeric_limits<double>::quiet_NaN();
+    const double slope = std::log(e[i] / e[i - 1]) / std::log(double(spp[i]) / double(spp[i - 1]));
+    return double(spp[i - 1]) * std::exp(std::log(target / e[i - 1]) / slope);
   }
   return std::numeric_limits<double>::quiet_NaN();
+}
+
+// The render time at (fractional) spp s, interpolated in log-log between the measured renders
+// (time is nearly linear in spp, so this is close whatever the noise of one render).
+double timeAt(const std::vector<int>& spp, const std::vector<double>& t, double s) {
+  if (!std::isfinite(s)) return std::numeric_limits<double>::quiet_NaN();
+  size_t i = 1;
+  while (i + 1 < spp.size() && double(spp[i]) < s) ++i;
+  const double a = std::log(t[i] / t[i - 1]) / std::log(double(spp[i]) / double(spp[i - 1]));
+  return t[i - 1] * std::pow(s / double(spp[i - 1]), a);
 }
 
 BenchReport::Json curveJson(const Curve& c) {
@@ -106,8 +119,9 @@ BenchReport::Json curveJson(const Curve& c) {
 }
 
 void runBenchSampler(const SamplerBenchArgs& a) {
-  if (a.resolution <= 0 || a.referenceSpp < 2 || a.maxSpp <= 0 || a.targetSpp <= 0 || a.targetSpp > a.maxSpp || a.repeats <= 0)
-    throw InputError("bench sampler: --resolution, --max-spp, --repeats must be positive, --reference-spp at least 2, --target-spp in 1..--max-spp");
+  if (a.resolution <= 0 || a.referenceSpp < 2 || a.maxSpp < 2 || a.targetSpp <= 0 || a.targetSpp > a.maxSpp || a.repeats <= 0)
+    throw InputError("bench sampler: --resolution and --repeats must be positive, --max-spp at least 2, --reference-spp at least 2, --target-spp in 1..--max-spp");
+  if ((a.targetSpp & (a.targetSpp - 1)) != 0) throw InputError("bench sampler: --target-spp must be a power of two (got " + std::to_string(a.targetSpp) + ")");
   if (a.referenceSpp < 8 * a.maxSpp) throw InputError("bench sampler: --reference-spp must be at least 8x --max-spp (the reference must converge further)");
   auto spec = zooScene(a.scene);
   const double aspect = double(spec.film().height()) / double(spec.film().width());
@@ -142,37 +156,38 @@ void runBenchSampler(const SamplerBenchArgs& a) {
 
     std::map<SamplerKind, Curve> curves;
     for (int spp = 1; spp <= a.maxSpp; spp *= 2) {
-      for (SamplerKind kind : {SamplerKind::Independent, SamplerKind::Sobol}) {
-        RenderOptions o = base;
-        o.spp = spp;
-        o.sampler = kind;
-        o.seed = 1000 + uint64_t(spp);
-        double best = std::numeric_limits<double>::infinity();
-        Image im;
-        for (int r = 0; r < a.repeats; ++r) {
+      // The repeats interleave the two samplers (a shared machine); each keeps its fastest.
+      std::map<SamplerKind, double> best;
+      std::map<SamplerKind, Image> image;
+      for (int r = 0; r < a.repeats; ++r)
+        for (SamplerKind kind : {SamplerKind::Independent, SamplerKind::Sobol}) {
+          RenderOptions o = base;
+          o.spp = spp;
+          o.sampler = kind;
+          o.seed = 1000 + uint64_t(spp);
           RenderResult res = renderView(*scene, 0, o);
-          best = std::min(best, res.seconds);
-          im = std::move(res.image);
+          best[kind] = r == 0 ? res.seconds : std::min(best[kind], res.seconds);
+          image[kind] = std::move(res.image);  // the same image every repeat (same seed)
         }
+      for (SamplerKind kind : {SamplerKind::Independent, SamplerKind::Sobol}) {
         Curve& c = curves[kind];
         c.spp.push_back(spp);
-        c.seconds.push_back(best);
-        c.mseAll.push_back(mse(im, ref, nullptr) - refMseAll);
-        c.mseInterior.push_back(mse(im, ref, &interior) - refMseInterior);
+        c.seconds.push_back(best[kind]);
+        c.mseAll.push_back(mse(image[kind], ref, nullptr) - refMseAll);
+        c.mseInterior.push_back(mse(image[kind], ref, &interior) - refMseInterior);
       }
     }
     const Curve& ind = curves[SamplerKind::Independent];
     const Curve& sob = curves[SamplerKind::Sobol];
     size_t ti = 0;
-    while (ind.spp[ti] != a.targetSpp && ti + 1 < ind.spp.size()) ++ti;
-    if (ind.spp[ti] != a.targetSpp) throw InputError("bench sampler: --target-spp must be a power of two");
+    while (ind.spp[ti] != a.targetSpp) ++ti;  // a power of two up to --max-spp (checked above)
     BenchReport::Json d = BenchReport::Json::object();
     std::string display;
     for (const char* region : {"all", "interior"}) {
       const bool all = std::string(region) == "all";
       const double target = all ? ind.mseAll[ti] : ind.mseInterior[ti];
-      const double tInd = timeToReach(ind.seconds, all ? ind.mseAll : ind.mseInterior, target);
-      const double tSob = timeToReach(sob.seconds, all ? sob.mseAll : sob.mseInterior, target);
+      const double tInd = timeAt(ind.spp, ind.seconds, sppToReach(ind.spp, all ? ind.mseAll : ind.mseInterior, target));
+      const double tSob = timeAt(sob.spp, sob.seconds, sppToReach(sob.spp, all ? sob.mseAll : sob.mseInterior, target));
       d[std::string("target_rmse_") + region] = std::sqrt(std::max(0.0, target));
       d[std::string("reference_rmse_") + region] = std::sqrt(std::max(0.0, all ? refMseAll : refMseInterior));
       d[std::string("seconds_to_target_independent_") + region] = tInd;

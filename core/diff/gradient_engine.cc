@@ -475,7 +475,10 @@ Image GradientEngine::sampleVarianceMap(int view, int spp, uint64_t seed, const 
   spec.squares = true;
   spec.view = view;
   spec.stream = streamSeed(seed, kVarianceMapStream);
-  spec.sampler = opt_.sampler;
+  // Independent whatever the job's sampler: the Bessel-corrected spread of a pixel's samples below
+  // estimates one sample's variance only when the samples are independent (stratified ones are
+  // correlated).
+  spec.sampler = SamplerKind::Independent;
   spec.spp = spp;
   spec.cancel = cancel;
   PassOutput pr = runPass(scene_, *estimator, spec, *scratch_);

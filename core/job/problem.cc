@@ -9,6 +9,7 @@
 #include "core/diff/gradient_job_check.h"
 #include "core/error.h"
 #include "core/image/image.h"
+#include "core/math/rng.h"
 #include "core/render/renderer.h"
 
 namespace invr {
@@ -177,6 +178,11 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
                      std::to_string(p.gradient.maxDepth) + (o.max_depth() == 0 ? ", the default" : "") +
                      ") disagree: targets, gradients and final renders share one light transport, set by "
                      "optimization.max_depth; remove render.max_depth or make the two equal");
+  if (!job.render().sampler().empty() && samplerKindFromName(job.render().sampler(), "render.sampler") != p.gradient.sampler)
+    throw InputError(std::string("render.sampler (") + job.render().sampler() + ") and optimization.sampler (" +
+                     samplerKindName(p.gradient.sampler) + (o.sampler().empty() ? ", the default" : "") +
+                     ") disagree: every render and pass of an optimisation job uses optimization.sampler; remove "
+                     "render.sampler or make the two equal");
   try {
     p.optimizer = o.optimizer().empty() ? p.optimizer : optimizerKindFromName(o.optimizer());
   } catch (const InputError& e) {

@@ -1,7 +1,6 @@
 #include "core/math/sampling.h"
 
 #include "core/error.h"
-#include "core/math/rng.h"
 
 #include <algorithm>
 
@@ -87,18 +86,6 @@ float Distribution2D::pdf(Vec2 p) const {
   int x = std::clamp(int(p.x * float(w_)), 0, w_ - 1);
   int y = std::clamp(int(p.y * float(h_)), 0, h_ - 1);
   return marginal_.pmf(y) * rows_[y].pmf(x) * float(w_) * float(h_);
-}
-
-}  // namespace invr
-
-namespace invr {
-
-const char* samplerKindName(SamplerKind kind) { return kind == SamplerKind::Sobol ? "sobol" : "independent"; }
-
-SamplerKind samplerKindFromName(const std::string& name, const std::string& field) {
-  if (name.empty() || name == "independent") return SamplerKind::Independent;
-  if (name == "sobol") return SamplerKind::Sobol;
-  throw InputError(field + ": unknown sampler '" + name + "' (expected independent or sobol)");
 }
 
 }  // namespace invr

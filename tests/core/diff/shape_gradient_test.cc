@@ -289,9 +289,11 @@ TEST(ShapeGradient, CardMovingUnderASmallAreaLight) {
   const MeanSE fdX = validatedFd(c, 0, 0.01f, "card x, area light");
   for (GradientMethod m : {GradientMethod::Pt, GradientMethod::Ris})
     expectMatches(run(c, 0, fdX, shapeOptions(m), 96, gradientMethodName(m)), gradientMethodName(m));
-  // Stratified samples, the area light's border points among them.
+  // Stratified samples, the area light's border points among them (light-point sampling: the
+  // default edge-first sampling keeps independent samples for its edge reservoirs).
   GradientOptions sobol = shapeOptions(GradientMethod::Ris);
   sobol.sampler = SamplerKind::Sobol;
+  sobol.boundary.areaSampling = BoundaryOptions::AreaSampling::LightPoints;
   expectMatches(run(c, 0, fdX, sobol, 96, "ris, sobol samples"), "ris, sobol samples");
 }
 
