@@ -27,7 +27,7 @@ BUILD_PACKAGES=(
   libnanoflann-dev libeigen3-dev libcli11-dev libtinyobjloader-dev nlohmann-json3-dev libpugixml-dev
   libjs-chart.js
 )
-# Tests, demo, charts and deployment checks.
+# Tests, demo, charts, deployment checks and the profiles of docs/performance.md (perf).
 PACKAGES=(
   "${BUILD_PACKAGES[@]}"
   python3 python3-grpcio python3-protobuf python3-numpy python3-matplotlib python3-pytest python3-openimageio
@@ -36,6 +36,7 @@ PACKAGES=(
   openssl iproute2
   nodejs
   chromium python3-websocket
+  linux-perf
 )
 if [ "${1:-}" = "--build-only" ]; then PACKAGES=("${BUILD_PACKAGES[@]}"); fi
 

@@ -13,6 +13,7 @@ void addBenchFakeWorkerCommand(CLI::App& bench, int& exitCode);
 void addBenchPixelCommand(CLI::App& bench, int& exitCode);
 void addBenchVarianceCommand(CLI::App& bench, int& exitCode);
 void addBenchSamplerCommand(CLI::App& bench, int& exitCode);  // bench sampler: independent against sobol
+void addBenchStepCommand(CLI::App& bench, int& exitCode);     // bench step: a gradient step against its rays' Embree time
 void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
 
 }  // namespace invr::cli

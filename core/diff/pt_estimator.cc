@@ -17,7 +17,7 @@ class PtEstimator final : public InteriorEstimator {
   }
   Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
              StoredReservoir*) const override {
-    PathContext ctx{&counters.rays, nullptr};
+    PathContext ctx{&counters.rays};
     thread_local std::vector<float> pmf;
     WalkSettings walk = walk_;
     walk.lightPmf = pixelLightPmf(scene_, view_, in.x, in.y, pmf);
@@ -26,7 +26,7 @@ class PtEstimator final : public InteriorEstimator {
   }
   Rgb varianceSample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, const VarianceWeights& weights,
                      PathGradient& grad) const override {
-    PathContext ctx{&counters.rays, nullptr};
+    PathContext ctx{&counters.rays};
     thread_local std::vector<float> pmf;
     VarianceWeights w = weights;
     w.view = view_;

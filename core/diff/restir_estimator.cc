@@ -51,7 +51,7 @@ class RestirEstimator final : public InteriorEstimator {
 
   Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
              StoredReservoir* reservoir) const override {
-    PathContext ctx{&counters.rays, nullptr};
+    PathContext ctx{&counters.rays};
     auto direct = [&](const ShadingPoint& sp, int, Sampler& smp, PathContext* c, DirectPath& out) {
       return combine(in, sp, smp, c, counters.restir, out, reservoir);
     };

@@ -17,7 +17,7 @@ class RisEstimator final : public InteriorEstimator {
   }
   Rgb sample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, Rgb adjoint, PathGradient* grad,
              StoredReservoir*) const override {
-    PathContext ctx{&counters.rays, nullptr};
+    PathContext ctx{&counters.rays};
     RisDirect direct{scene_, candidates_, visibility_};
     return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad);
   }

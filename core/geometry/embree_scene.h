@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/geometry/mesh.h"
+#include "core/geometry/ray_log.h"
 
 namespace invr {
 
@@ -38,6 +39,7 @@ class EmbreeScene {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &ctx, &rh);
+    if (RayLog* log = RayLog::active()) log->record(scene_, o, d, tmin, tmax, false, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     hit = {rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v};
     return true;
@@ -51,7 +53,9 @@ class EmbreeScene {
     r.tnear = tmin; r.tfar = tmax;
     r.mask = 0xffffffffu; r.flags = 0; r.time = 0.f; r.id = 0;
     rtcOccluded1(scene_, &ctx, &r);
-    return r.tfar < 0.f;  // Embree sets tfar = -inf on a hit
+    const bool blocked = r.tfar < 0.f;  // Embree sets tfar = -inf on a hit
+    if (RayLog* log = RayLog::active()) log->record(scene_, o, d, tmin, tmax, true, blocked);
+    return blocked;
   }
   RTCScene handle() const { return scene_; }
 

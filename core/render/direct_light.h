@@ -69,17 +69,12 @@ inline float risTarget(const ShadingPoint& sp, const LightSample& ls, Rgb* fOut 
 inline bool traceShadow(const Scene& scene, const ShadingPoint& sp, const LightSample& ls, PathContext* ctx) {
   if (ctx && ctx->stats) ++ctx->stats->shadow;
   Vec3 o = Scene::shadowOrigin(sp.hit->p, sp.hit->ng, ls.wi);
-  if (std::isinf(ls.dist)) {
-    if (ctx && ctx->record) ctx->record->push_back({o, ls.wi, std::numeric_limits<float>::infinity(), true});
-    return scene.occludedDirection(o, ls.wi);
-  }
+  if (std::isinf(ls.dist)) return scene.occludedDirection(o, ls.wi);
   // Area lights: step off the emitter towards the receiver; point lights have no surface.
   Vec3 target = isBlack(ls.lightNormal) ? ls.lightPoint : offsetOrigin(ls.lightPoint, ls.lightNormal, -ls.wi);
   Vec3 dir = ls.wi;
   float tmax = 0.f;
-  bool blocked = scene.occludedSegment(o, target, dir, tmax);
-  if (ctx && ctx->record) ctx->record->push_back({o, dir, tmax, true});
-  return blocked;
+  return scene.occludedSegment(o, target, dir, tmax);
 }
 
 // A path to a light sample whose unbiased contribution weight (in the native measure) is W.

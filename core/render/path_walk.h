@@ -73,7 +73,6 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
       ++(depth == 0 ? ctx->stats->camera : ctx->stats->bounce);
       ++ctx->stats->byDepth[depth];
     }
-    if (ctx && ctx->record) ctx->record->push_back({o, d, std::numeric_limits<float>::infinity(), false});
     SurfaceHit hit;
     if (!scene.intersect(o, d, hit)) {
       if (!specular && !s.bsdfMis) return;

@@ -47,17 +47,9 @@ struct RayStats {
   }
 };
 
-// A ray as the renderer traced it (for `invr bench rays`, which replays them through bare Embree).
-struct RayRecord {
-  Vec3 o, d;
-  float tmax;
-  bool shadow;
-};
-
-// Per-path instrumentation; both members optional.
+// Per-path instrumentation (optional). The rays themselves: core/geometry/ray_log.h.
 struct PathContext {
   RayStats* stats = nullptr;
-  std::vector<RayRecord>* record = nullptr;
 };
 
 }  // namespace invr

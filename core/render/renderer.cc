@@ -3,7 +3,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/blocked_range2d.h>
 #include <tbb/combinable.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <atomic>
@@ -19,7 +18,7 @@
 namespace invr {
 
 RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
-                        const std::function<void(double)>& progress, std::vector<RayRecord>* recordRays) {
+                        const std::function<void(double)>& progress) {
   if (view < 0 || size_t(view) >= scene.cameras.size())
     throw InputError("view " + std::to_string(view) + " out of range (scene has " + std::to_string(scene.cameras.size()) + " views)");
   if (opt.spp <= 0) throw InputError("spp must be positive (got " + std::to_string(opt.spp) + ")");
@@ -31,7 +30,6 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
   res.image = Image(W, H, 3);
   tbb::combinable<RayStats> stats;
   tbb::combinable<uint64_t> nonFinite([] { return uint64_t(0); });
-  tbb::enumerable_thread_specific<std::vector<RayRecord>> records;
   constexpr int kTile = 16;
   std::atomic<size_t> pixelsDone{0};
   std::mutex progressMutex;
@@ -44,7 +42,7 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
     }
     RayStats& st = stats.local();
     uint64_t& bad = nonFinite.local();
-    PathContext ctx{&st, recordRays ? &records.local() : nullptr};
+    PathContext ctx{&st};
     for (int y = r.rows().begin(); y < r.rows().end(); ++y)
       for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
         double acc[3] = {0, 0, 0};
@@ -75,7 +73,6 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
   if (cancelled) throw EvaluationCancelled{};
   stats.combine_each([&](const RayStats& s) { res.rays += s; });
   nonFinite.combine_each([&](uint64_t n) { res.nonFiniteSamples += n; });
-  if (recordRays) records.combine_each([&](const std::vector<RayRecord>& v) { recordRays->insert(recordRays->end(), v.begin(), v.end()); });
   res.seconds = clock.seconds();
   return res;
 }

@@ -20,8 +20,7 @@ struct RenderResult {
 
 // progress(fraction) is called from worker threads, serialised, at most once per tile row.
 RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
-                        const std::function<void(double)>& progress = {},
-                        std::vector<RayRecord>* recordRays = nullptr);
+                        const std::function<void(double)>& progress = {});
 
 // First-hit auxiliary images through each pixel centre: albedo (BSDF reflectance colour), shading
 // normal (world space) and ray distance (0 where the ray escapes). For denoisers and debugging.

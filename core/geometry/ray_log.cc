@@ -1,0 +1,67 @@
+#include "core/geometry/ray_log.h"
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <mutex>
+#include <stdexcept>
+
+namespace invr {
+
+std::atomic<RayLog*> RayLog::active_{nullptr};
+std::atomic<bool> RayLog::boundary_{false};
+
+struct RayLog::Impl {
+  struct PerThread {
+    std::vector<LoggedRay> rays;
+    RTCScene lastScene = nullptr;  // retained already: skips the shared set for runs of one BVH
+  };
+  tbb::enumerable_thread_specific<PerThread> threads;
+  std::mutex mutex;
+  std::vector<RTCScene> retained;  // kept alive for the replay: BVHs of poses may go before it
+
+  void retain(RTCScene scene) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (std::find(retained.begin(), retained.end(), scene) != retained.end()) return;
+    rtcRetainScene(scene);
+    retained.push_back(scene);
+  }
+};
+
+RayLog::RayLog() : impl_(std::make_unique<Impl>()) {
+  RayLog* expected = nullptr;
+  if (!active_.compare_exchange_strong(expected, this)) throw std::logic_error("RayLog: another log is active");
+}
+
+RayLog::~RayLog() {
+  stop();
+  for (RTCScene s : impl_->retained) rtcReleaseScene(s);
+}
+
+void RayLog::stop() {
+  RayLog* self = this;
+  active_.compare_exchange_strong(self, nullptr);
+}
+
+void RayLog::record(RTCScene scene, Vec3 o, Vec3 d, float tnear, float tfar, bool shadow, bool hit) {
+  Impl::PerThread& t = impl_->threads.local();
+  if (scene != t.lastScene) {
+    impl_->retain(scene);
+    t.lastScene = scene;
+  }
+  t.rays.push_back({scene, o, d, tnear, tfar, shadow, hit, boundary_.load(std::memory_order_relaxed)});
+}
+
+std::vector<LoggedRay> RayLog::take() {
+  std::vector<LoggedRay> all;
+  size_t n = 0;
+  for (const Impl::PerThread& t : impl_->threads) n += t.rays.size();
+  all.reserve(n);
+  for (Impl::PerThread& t : impl_->threads) {
+    all.insert(all.end(), t.rays.begin(), t.rays.end());
+    std::vector<LoggedRay>().swap(t.rays);
+  }
+  return all;
+}
+
+}  // namespace invr
