@@ -12,6 +12,7 @@
 #include "client/lab/embree_replay.h"
 #include "client/lab/lab_commands.h"
 #include "core/diff/gradient_engine.h"
+#include "core/diff/gradient_stats.h"
 #include "core/error.h"
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
@@ -40,44 +41,59 @@ struct StepRun {
 // then `warmup` gradient steps.
 uint64_t measuredCounter(const Problem& p, int warmup) { return uint64_t(p.burnIn) + uint64_t(warmup); }
 
-// A fresh engine through the job's evaluations before the measured one (requests as a one-worker
-// job builds them), then the measured step, timed. With `log`, only that step's rays are logged.
+// One engine with a session per shard of the job's views, evaluating as an in-process job does
+// (LocalEvaluator): every shard with views in the batch, one after another; the stats summed.
+struct StepEngine {
+  const Problem& p;
+  GradientEngine engine;
+  std::vector<EngineSession> sessions;
+  StepEngine(const Problem& problem, const std::vector<Image>& targets)
+      : p(problem), engine(*problem.scene, problem.params, targets, problem.gradient), sessions(problem.shards.size()) {}
+  v1::GradientStats evaluate(uint64_t counter) {
+    const Evaluation e = evaluationAt(p, counter);
+    v1::GradientStats total;
+    for (size_t s = 0; s < p.shards.size(); ++s) {
+      const GradientRequest r = shardRequest(p, e, s);
+      if (!r.views.empty()) addGradientStats(total, engine.evaluate(r, sessions[s]).stats);
+    }
+    return total;
+  }
+};
+
+// A fresh engine through the job's evaluations before the measured one, then the measured step,
+// timed. With `log`, only that step's rays are logged.
 StepRun runStep(const Problem& p, const std::vector<Image>& targets, int warmup, std::unique_ptr<RayLog>* log) {
-  GradientEngine engine(*p.scene, p.params, targets, p.gradient);
-  EngineSession session;
+  StepEngine engine(p, targets);
   const uint64_t measured = measuredCounter(p, warmup);
-  for (uint64_t k = 0; k < measured; ++k) engine.evaluate(shardRequest(p, evaluationAt(p, k), 0), session);
-  const GradientRequest r = shardRequest(p, evaluationAt(p, measured), 0);
+  for (uint64_t k = 0; k < measured; ++k) engine.evaluate(k);
   if (log) *log = std::make_unique<RayLog>();
   Stopwatch clock;
   StepRun run;
-  run.stats = engine.evaluate(r, session).stats;
+  run.stats = engine.evaluate(measured);
   run.seconds = clock.seconds();
   if (log) (*log)->stop();  // the BVHs stay retained for the replay; nothing else is logged
   return run;
 }
 
-// The bound and the step against it; per kind: rays, bound seconds and the fastest mode (of the
-// kind's largest group).
 // A profiler's workload (--no-replay): one engine through the same warm-up, then `count`
 // consecutive gradient steps, each timed.
 std::vector<StepRun> consecutiveSteps(const Problem& p, const std::vector<Image>& targets, int warmup, int count) {
-  GradientEngine engine(*p.scene, p.params, targets, p.gradient);
-  EngineSession session;
+  StepEngine engine(p, targets);
   const uint64_t first = measuredCounter(p, warmup);
-  for (uint64_t k = 0; k < first; ++k) engine.evaluate(shardRequest(p, evaluationAt(p, k), 0), session);
+  for (uint64_t k = 0; k < first; ++k) engine.evaluate(k);
   std::vector<StepRun> runs;
   for (int i = 0; i < count; ++i) {
-    const GradientRequest r = shardRequest(p, evaluationAt(p, first + uint64_t(i)), 0);
     Stopwatch clock;
     StepRun run;
-    run.stats = engine.evaluate(r, session).stats;
+    run.stats = engine.evaluate(first + uint64_t(i));
     run.seconds = clock.seconds();
     runs.push_back(std::move(run));
   }
   return runs;
 }
 
+// The bound and the step against it; per kind: rays, bound seconds and the fastest mode (of the
+// kind's largest group).
 void reportBound(BenchReport& rep, double stepSeconds, const std::vector<LoggedRay>& rays, const std::vector<RayGroup>& groups,
                  const ReplayTimes& times, const v1::RayCounts& counted) {
   rep.number("ray_bound_seconds", times.boundSeconds(), "s (bare Embree, each kind in its fastest mode)");

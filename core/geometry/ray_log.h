@@ -1,6 +1,7 @@
 // An optional log of every ray traced through any EmbreeScene, for `invr bench step`, which
 // replays a gradient step's rays through bare Embree to measure the step against its ray-tracing
-// bound. Off unless a RayLog is alive: tracing then pays one relaxed atomic load per ray.
+// bound. Off unless a RayLog is active (alive and not stopped): tracing then pays one relaxed
+// atomic load per ray.
 #pragma once
 
 #include <embree3/rtcore.h>
