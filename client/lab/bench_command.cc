@@ -105,6 +105,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   addBenchVarianceCommand(*bench, exitCode);
   addBenchSamplerCommand(*bench, exitCode);
   addBenchStepCommand(*bench, exitCode);
+  addBenchScaleCommand(*bench, exitCode);
 }
 
 }  // namespace invr::cli

@@ -379,6 +379,7 @@ struct ReconstructArgs {
   std::vector<std::string> pixelSamplers;  // compare these pixel samplers instead of light sampling
   int pixelSamples = 0;
   std::vector<std::string> params;  // --param: replaces the zoo job's parameters
+  std::vector<std::string> sets;    // --set FIELD.PATH=VALUE: any job field (e.g. optimization.pixel_refresh=5)
   int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
   std::vector<std::string> methods{"pt", "ris", "restir"};  // also: forward_only
   bool json = false;
@@ -388,6 +389,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   if (!(a.seconds > 0)) throw InputError("--seconds must be positive");
   auto job = benchJob(a.scene, a.params);
   job.mutable_optimization()->set_target_spp(256);
+  applySets(job, a.sets);
   if (!a.loss.empty()) job.mutable_optimization()->set_loss(a.loss);
   if (!a.optimizer.empty()) job.mutable_optimization()->set_optimizer(a.optimizer);
   if (a.learningRate > 0)
@@ -708,6 +710,9 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   rc->add_option("--pixel-samplers", ra->pixelSamplers, "compare these pixel samplers (" + samplerNames + ") with the job's method")
       ->delimiter(',');
   rc->add_option("--pixel-samples", ra->pixelSamples, "pixel samples per view for the mini-batch samplers");
+  rc->add_option("--set", ra->sets,
+                 "FIELD.PATH=VALUE: set any field of the scene's job before the runs, e.g. optimization.pixel_refresh=5, "
+                 "optimization.pixel_defensive=0.5, optimization.method=pt (repeatable)");
   rc->add_option("--csv", ra->csv, "convergence data: method, step, seconds, loss, param_error, image_error, then one column per statistic")->capture_default_str();
   rc->add_option("--param", ra->params, "NAME[=V[,V,V]]: recover this parameter instead of the job's, from the values given (repeatable)")
       ->allow_extra_args(false);

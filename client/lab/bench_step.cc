@@ -11,8 +11,7 @@
 #include "client/lab/bench_report.h"
 #include "client/lab/embree_replay.h"
 #include "client/lab/lab_commands.h"
-#include "core/diff/gradient_engine.h"
-#include "core/diff/gradient_stats.h"
+#include "client/lab/step_engine.h"
 #include "core/error.h"
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
@@ -35,29 +34,6 @@ struct StepArgs {
 struct StepRun {
   double seconds = 0;
   v1::GradientStats stats;
-};
-
-// The evaluation counter of the measured step: the job's burn-in (ReSTIR's render-only steps),
-// then `warmup` gradient steps.
-uint64_t measuredCounter(const Problem& p, int warmup) { return uint64_t(p.burnIn) + uint64_t(warmup); }
-
-// One engine with a session per shard of the job's views, evaluating as an in-process job does
-// (LocalEvaluator): every shard with views in the batch, one after another; the stats summed.
-struct StepEngine {
-  const Problem& p;
-  GradientEngine engine;
-  std::vector<EngineSession> sessions;
-  StepEngine(const Problem& problem, const std::vector<Image>& targets)
-      : p(problem), engine(*problem.scene, problem.params, targets, problem.gradient), sessions(problem.shards.size()) {}
-  v1::GradientStats evaluate(uint64_t counter) {
-    const Evaluation e = evaluationAt(p, counter);
-    v1::GradientStats total;
-    for (size_t s = 0; s < p.shards.size(); ++s) {
-      const GradientRequest r = shardRequest(p, e, s);
-      if (!r.views.empty()) addGradientStats(total, engine.evaluate(r, sessions[s]).stats);
-    }
-    return total;
-  }
 };
 
 // A fresh engine through the job's evaluations before the measured one, then the measured step,

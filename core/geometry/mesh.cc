@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "core/error.h"
+#include "core/math/rng.h"
 
 namespace invr {
 
@@ -276,6 +277,83 @@ TriangleMesh makeCylinder(int segments, bool capped) {
         if (z > 0) m.indices.insert(m.indices.end(), {center, a, b});
         else m.indices.insert(m.indices.end(), {center, b, a});
       }
+    }
+  }
+  return m;
+}
+
+namespace {
+
+constexpr int kStemSections = 6, kStemSides = 4;
+int leafletRings(int leafSegments) { return std::max(2, leafSegments / 3); }
+
+}  // namespace
+
+uint64_t plantVertexCount(int leaves, int leafSegments) {
+  const uint64_t leaflet = 1 + uint64_t(leafletRings(leafSegments)) * uint64_t(leafSegments + 1);
+  return uint64_t(leaves) * (3 * leaflet + uint64_t((kStemSections + 1) * kStemSides));
+}
+
+uint64_t plantTriangleCount(int leaves, int leafSegments) {
+  const uint64_t leaflet = uint64_t(leafSegments) * uint64_t(2 * leafletRings(leafSegments) - 1);
+  return uint64_t(leaves) * (3 * leaflet + uint64_t(2 * kStemSections * kStemSides));
+}
+
+TriangleMesh makePlant(int leaves, int leafSegments, uint64_t seed) {
+  TriangleMesh m;
+  const int rings = leafletRings(leafSegments);
+  m.positions.reserve(plantVertexCount(leaves, leafSegments));
+  m.indices.reserve(3 * plantTriangleCount(leaves, leafSegments));
+  const Vec3 up(0, 1, 0);
+  for (int l = 0; l < leaves; ++l) {
+    int draw = 0;
+    auto uniform = [&] {  // the leaf's own numbers, independent of how many leaves there are
+      return float(mix64(mix64(seed ^ 0x6f78616c6973ull) + uint64_t(l) * 0x9e3779b97f4a7c15ull + uint64_t(draw++)) >> 40) * 0x1p-24f;
+    };
+    // The stem: a quadratic Bezier that rises from near the origin, then arches out to its top.
+    const float phi = 2.f * kPi * uniform(), spread = 0.6f * std::sqrt(uniform()), height = 0.45f + 0.55f * uniform();
+    const Vec3 base(0.04f * (uniform() - 0.5f), 0.f, 0.04f * (uniform() - 0.5f));
+    const Vec3 top(spread * std::cos(phi), height, spread * std::sin(phi)), ctrl(base.x, 0.9f * height, base.z);
+    auto stemAt = [&](float t) { return base * ((1 - t) * (1 - t)) + ctrl * (2 * t * (1 - t)) + top * (t * t); };
+    const uint32_t stem0 = uint32_t(m.positions.size());
+    for (int i = 0; i <= kStemSections; ++i) {
+      const float t = float(i) / float(kStemSections);
+      const Vec3 c = stemAt(t), tangent = normalize((ctrl - base) * (2 * (1 - t)) + (top - ctrl) * (2 * t));
+      const Vec3 side = normalize(cross(tangent, std::abs(tangent.x) < 0.9f ? Vec3(1, 0, 0) : Vec3(0, 0, 1)));
+      const Vec3 other = cross(tangent, side);
+      for (int j = 0; j < kStemSides; ++j) {
+        const float a = 2.f * kPi * float(j) / float(kStemSides);
+        m.positions.push_back(c + (side * std::cos(a) + other * std::sin(a)) * 0.006f);
+      }
+    }
+    for (int i = 0; i < kStemSections; ++i)
+      for (int j = 0; j < kStemSides; ++j) {
+        const uint32_t a = stem0 + uint32_t(i * kStemSides + j), b = stem0 + uint32_t(i * kStemSides + (j + 1) % kStemSides);
+        m.indices.insert(m.indices.end(), {a, b, b + kStemSides, a, b + kStemSides, a + kStemSides});
+      }
+    // Three heart-shaped leaflets at the top, each a fan around the stem's tip: polar outline
+    // R(theta) with the notch at theta = 0, folded up along the midrib and drooping outwards.
+    const float psi = 2.f * kPi * uniform(), droop = 0.1f + 0.5f * uniform(), size = 0.07f + 0.04f * uniform();
+    for (int k = 0; k < 3; ++k) {
+      const float az = psi + 2.f * kPi * float(k) / 3.f;
+      const Vec3 horizontal(std::cos(az), 0.f, std::sin(az));
+      const Vec3 axis = horizontal * std::cos(droop) - up * std::sin(droop), across = normalize(cross(up, horizontal));
+      const Vec3 normal = cross(axis, across);
+      const uint32_t centre = uint32_t(m.positions.size());
+      m.positions.push_back(top);
+      constexpr float kHalfAngle = 1.0f;
+      for (int r = 1; r <= rings; ++r)
+        for (int j = 0; j <= leafSegments; ++j) {
+          const float theta = kHalfAngle * (2.f * float(j) / float(leafSegments) - 1.f);
+          const float radius = float(r) / float(rings) * size * (1.f - 0.45f * std::exp(-(theta / 0.2f) * (theta / 0.2f)));
+          const float along = radius * std::cos(theta), side = radius * std::sin(theta);
+          m.positions.push_back(top + axis * along + across * side + normal * (0.4f * side * side / size) - up * (0.5f * along * along / size));
+        }
+      auto vertex = [&](int r, int j) { return centre + 1 + uint32_t((r - 1) * (leafSegments + 1) + j); };
+      for (int j = 0; j < leafSegments; ++j) m.indices.insert(m.indices.end(), {centre, vertex(1, j), vertex(1, j + 1)});
+      for (int r = 1; r < rings; ++r)
+        for (int j = 0; j < leafSegments; ++j)
+          m.indices.insert(m.indices.end(), {vertex(r, j), vertex(r + 1, j), vertex(r + 1, j + 1), vertex(r, j), vertex(r + 1, j + 1), vertex(r, j + 1)});
     }
   }
   return m;

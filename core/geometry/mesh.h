@@ -33,6 +33,12 @@ TriangleMesh makeSphere(int rings);
 TriangleMesh makeDisk(int segments);  // radius 1 in the xy plane, normal +z
 TriangleMesh makeCylinder(int segments, bool capped);
 TriangleMesh makeTorusKnot(int p, int q, float tubeRadius, int segments, int tubeSegments);
+// Foliage (scene.proto's Plant): `leaves` trifoliate leaves on curved stems from the origin, up +y
+// to about 1, within a radius of about 0.7; the same seed gives the same plant. No normals or uvs.
+TriangleMesh makePlant(int leaves, int leafSegments, uint64_t seed);
+// Its vertex and triangle counts, without building it.
+uint64_t plantVertexCount(int leaves, int leafSegments);
+uint64_t plantTriangleCount(int leaves, int leafSegments);
 // Start meshes of vertex parameters (no seams, no normals, no uvs): an icosahedron subdivided
 // `subdivisions` times onto the unit sphere (10 * 4^s + 2 vertices), and a grid of n x n cells
 // over [-1, 1]^2 in the xy plane, normal +z.

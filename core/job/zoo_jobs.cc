@@ -137,6 +137,27 @@ v1::JobSpec zooJob(const std::string& name) {
     o->set_views_per_step(octagon ? 4 : 2);
     o->set_steps(500);
     o->set_learning_rate_half_life(150);
+  } else if (name == "oxalis-hd") {
+    // The paper-scale oxalis (Wang et al. 2023, Table 1: Oxalis, 183K parameters): the texture
+    // under the plant's shadow, as oxalis's job.
+    param(o, "materials/painting/albedo", 0.5, 0.005);
+    o->set_steps(300);
+    o->set_learning_rate_half_life(100);
+  } else if (name == "kitty") {
+    // Wang et al. 2023, Fig. 12: 32 targets, batches of 16 views.
+    param(o, "materials/kitty/albedo", 0.5, 0.005);
+    o->set_views_per_step(16);
+    o->set_steps(200);
+    o->set_learning_rate_half_life(100);
+  } else if (name == "gallery") {
+    // Yan et al. 2025: each step traces 6,400 of each view's 262,144 pixels (2.4 %), drawn from
+    // the adaptive sampler's maps, 8 of the 16 views a step.
+    for (int k = 0; k < 4; ++k) param(o, "materials/painting_" + std::to_string(k) + "/albedo", 0.5, 0.005);
+    o->set_views_per_step(8);
+    o->set_steps(300);
+    o->set_learning_rate_half_life(100);
+    o->set_pixel_sampler("adaptive");
+    o->set_pixel_samples(6400);
   } else if (name == "roulette") {
     // Yan et al. 2024, Fig. 9: survival per bounce against time x variance (Eq. 33, 36), from
     // q = 1 (no roulette); 8 bounces.

@@ -252,7 +252,15 @@ TriangleMesh shapeMesh(const v1::Shape& s, const AssetResolver& assets, const st
       };
       return makeHeightfield(cells, height);
     }
-    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder, disk, torus_knot or heightfield)");
+    case v1::Shape::kPlant: {
+      const auto& p = s.plant();
+      const int leaves = p.leaves() > 0 ? p.leaves() : 100, segments = p.leaf_segments() > 0 ? p.leaf_segments() : 18;
+      if (leaves > 100000) fail(field + ".plant.leaves", "must be in 1..100000");
+      if (segments < 3 || segments > 256) fail(field + ".plant.leaf_segments", "must be in 3..256");
+      chargeMesh(assets, plantVertexCount(leaves, segments), plantTriangleCount(leaves, segments), field + ".plant");
+      return makePlant(leaves, segments, p.seed());
+    }
+    default: fail(field, "no geometry set (mesh, quad, box, sphere, cylinder, disk, torus_knot, heightfield or plant)");
   }
 }
 

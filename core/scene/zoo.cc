@@ -485,6 +485,120 @@ v1::Scene relief() {
   return m.s;
 }
 
+// The papers' scale (Wang et al. 2023, Table 1; Yan et al. 2025). Oxalis at 512 x 512: a plant of
+// 64K triangles, lit from above left by a narrow spot, throws a detailed shadow across the left of
+// a painting whose 256 x 256 texture is the parameter; a second spot lights its right, and a dim
+// fill (2 % of the light selections, as in oxalis) is all that lights the rest. The plant is out
+// of view: every texel the camera sees is seen unoccluded.
+v1::Scene oxalisHd() {
+  SceneMaker m;
+  m.s.set_name("oxalis-hd");
+  m.diffuse("wall", 0.6, 0.58, 0.55);
+  m.diffuse("floor", 0.35, 0.3, 0.25);
+  m.diffuse("leaves", 0.25, 0.5, 0.2);
+  m.diffuseTexture("painting", "painting", 256, 11, 0.15, 0.4, 0.15, 0.75, 0.65, 0.45);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  m.quad("wall", "wall", {3, 2, 1}, kFacePosZ, {0, 2, -0.01});
+  m.quad("painting", "painting", {0.6, 0.6, 1}, kFacePosZ, {0, 1.3, 0});
+  auto* plant = m.shape("oxalis", "leaves");
+  plant->mutable_plant()->set_leaves(60);
+  plant->mutable_plant()->set_leaf_segments(24);
+  plant->mutable_plant()->set_seed(7);
+  SceneMaker::place(plant, {0.5, 0.5, 0.5}, {0, 0, 0}, {-0.2, 1.9, 0.6});
+  m.spot("spot_left", {-0.6, 3.9, 1.6}, {-0.15, 1.45, 0}, 1200.0, 16, 12);
+  m.spot("spot_right", {1.1, 0.5, 1.3}, {0.35, 1.1, 0}, 700.0, 9, 6);
+  m.point("fill", {0.2, 1.6, 2.2}, 0.5);
+  m.view("front", {0, 1.3, 2.4}, {0, 1.3, 0}, 30);
+  m.film(512, 512);
+  return m.s;
+}
+
+// Wang et al. 2023, Fig. 12's setting: a textured object (a torus knot standing in for the Kitty
+// statue; its texture, 512 x 48 texels along and around the tube, is the parameter) seen from 32
+// views around it, under a light above and a dim sky.
+constexpr int kKittyViews = 32;
+
+v1::Scene kitty() {
+  SceneMaker m;
+  m.s.set_name("kitty");
+  m.diffuse("floor", 0.5, 0.5, 0.5);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  auto* tex = m.diffuseTexture("kitty", "painting", 512, 31, 0.7, 0.45, 0.2, 0.25, 0.35, 0.6);
+  tex->mutable_diffuse()->mutable_albedo()->mutable_procedural()->set_height(48);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* k = m.shape("kitty", "kitty");
+  k->mutable_torus_knot()->set_segments(512);
+  k->mutable_torus_knot()->set_tube_segments(32);
+  SceneMaker::place(k, {0.6, 0.6, 0.6}, {-90, 0, 0}, {0, 0.75, 0});
+  m.quad("lamp", "emitter", {0.3, 0.3, 1}, kFaceDown, {0.5, 2.6, 0.4});
+  m.areaLight("lamp", "lamp", 30, 29, 27);
+  auto* sky = m.s.add_lights();
+  sky->set_name("sky");
+  SceneMaker::set(sky->mutable_constant_environment()->mutable_radiance(), 0.12, 0.13, 0.15);
+  const double kPi = 3.14159265358979323846;
+  for (int v = 0; v < kKittyViews; ++v) {
+    // Two rings of 16 around the object, the upper one turned by half a step.
+    const bool upper = v % 2 == 1;
+    const double a = 2 * kPi * (double(v / 2) + (upper ? 0.5 : 0.0)) / double(kKittyViews / 2);
+    m.view("around_" + std::to_string(v), {2.3 * std::cos(a), upper ? 1.9 : 0.9, 2.3 * std::sin(a)}, {0, 0.75, 0}, 35);
+  }
+  m.film(256, 256);
+  return m.s;
+}
+
+// Yan et al. 2025's setting: many high-resolution views of which a step traces a few pixels. A
+// gallery room: four varnished paintings (rough plastic over their textures, the parameters), each
+// under its own spotlight, a glossy floor, a dim ceiling light; 16 views at 512 x 512, four of
+// each painting from around the room.
+constexpr int kGalleryPaintings = 4;
+
+v1::Scene gallery() {
+  SceneMaker m;
+  m.s.set_name("gallery");
+  m.diffuse("walls", 0.72, 0.7, 0.66);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  auto* floor = m.s.add_materials();
+  floor->set_name("floor");
+  SceneMaker::set(floor->mutable_rough_plastic()->mutable_albedo()->mutable_constant(), 0.3, 0.2, 0.12);
+  floor->mutable_rough_plastic()->mutable_roughness()->set_value(0.12);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  m.quad("ceiling", "walls", {3, 3, 1}, kFaceDown, {0, 3, 0});
+  m.quad("wall_back", "walls", {3, 1.5, 1}, kFacePosZ, {0, 1.5, -3});
+  m.quad("wall_front", "walls", {3, 1.5, 1}, kFaceNegZ, {0, 1.5, 3});
+  m.quad("wall_left", "walls", {3, 1.5, 1}, kFacePosX, {-3, 1.5, 0});
+  m.quad("wall_right", "walls", {3, 1.5, 1}, kFaceNegX, {3, 1.5, 0});
+  m.quad("skylight", "emitter", {0.6, 0.6, 1}, kFaceDown, {0, 2.99, 0});
+  m.areaLight("skylight", "skylight", 2.5, 2.5, 2.6);
+  const double kPi = 3.14159265358979323846;
+  // Painting k hangs on the wall facing direction (cos a, 0, sin a) from the room's centre.
+  for (int k = 0; k < kGalleryPaintings; ++k) {
+    const std::string name = "painting_" + std::to_string(k);
+    auto* p = m.s.add_materials();
+    p->set_name(name);
+    auto* proc = p->mutable_rough_plastic()->mutable_albedo()->mutable_procedural();
+    proc->set_pattern("painting");
+    proc->set_width(64);
+    proc->set_seed(uint64_t(41 + k));
+    SceneMaker::set(proc->mutable_color_a(), 0.15 + 0.1 * k, 0.4, 0.2);
+    SceneMaker::set(proc->mutable_color_b(), 0.8, 0.65 - 0.1 * k, 0.45);
+    p->mutable_rough_plastic()->mutable_roughness()->set_value(0.25);
+    const double a = 2 * kPi * double(k) / kGalleryPaintings;
+    const double dx = std::cos(a), dz = std::sin(a);  // from the centre towards the wall
+    // The unit quad faces +z; turn it to face the room (-dx, 0, -dz): a yaw of atan2(-dx, -dz).
+    const double yaw = std::atan2(-dx, -dz) * 180.0 / kPi;
+    m.quad(name, name, {0.8, 0.6, 1}, {0, yaw, 0}, {2.99 * dx, 1.6, 2.99 * dz});
+    m.spot("spot_" + std::to_string(k), {1.6 * dx, 2.9, 1.6 * dz}, {3.0 * dx, 1.6, 3.0 * dz}, 10.0, 24, 18);
+    for (int v = 0; v < 4; ++v) {
+      // Four stand-points per painting: near and far, left and right of it, at eye heights.
+      const double back = v < 2 ? 1.2 : 0.0, off = (v % 2 ? 1.0 : -1.0) * (0.5 + 0.4 * double(v / 2));
+      const double ex = back * dx - off * dz, ez = back * dz + off * dx;
+      m.view(name + "_view_" + std::to_string(v), {ex, 1.5 + 0.15 * double(v % 2), ez}, {2.9 * dx, 1.2, 2.9 * dz}, 45);
+    }
+  }
+  m.film(512, 512);
+  return m.s;
+}
+
 struct ZooDef {
   ZooEntry entry;
   std::function<v1::Scene()> build;
@@ -505,6 +619,9 @@ const std::vector<ZooDef>& zoo() {
       {{"pose", "a box under an area light; its translation and rotation from one image (shape parameters)"}, pose},
       {{"octagon", "a faceted solid under 16 spotlights, seen only through its shadows on the walls (16 views); its mesh from a sphere"}, octagon},
       {{"relief", "a relief on a wall under a large light seen through a window frame (6 views); its mesh from a plane"}, relief},
+      {{"oxalis-hd", "paper scale: a 64K-triangle plant's shadow on a painting, 256x256 texture (196K values), 512x512"}, oxalisHd},
+      {{"kitty", "paper scale: a textured knot seen from 32 views around it, 16 per step; 512x48 texture (74K values)"}, kitty},
+      {{"gallery", "paper scale: four varnished paintings and a glossy floor, 16 views at 512x512; a step traces 2.4 % of each view's pixels (adaptive)"}, gallery},
   };
   return defs;
 }

@@ -10,6 +10,10 @@ rm -rf "$OUT.new"
 # Keep only what a reader looks at: the grids' tiles are regenerated on every run.
 find "$OUT.new" -path '*/images/*' -delete
 find "$OUT.new" -type d -name images -empty -delete
+# Folders other runs own (shapes: docs/differentiable-rendering.md's figures; paper: run_paper.sh).
+for keep in shapes paper; do
+  if [ -d "$OUT/$keep" ] && [ ! -e "$OUT.new/$keep" ]; then mv "$OUT/$keep" "$OUT.new/$keep"; fi
+done
 rm -rf "$OUT"
 mv "$OUT.new" "$OUT"
 echo "wrote $OUT (log: /tmp/invr-eval-full.log)"

@@ -140,3 +140,30 @@ TEST(Mesh, SmoothNormalsAdjointMatchesFiniteDifferences) {
 
 }  // namespace
 }  // namespace invr
+
+namespace invr {
+namespace {
+
+// scene.proto's Plant: the documented counts and extent, valid (no degenerate or non-manifold
+// triangles), the same plant for the same seed and another for another seed.
+TEST(Mesh, PlantHasItsDocumentedCountsAndExtent) {
+  for (auto [leaves, segments] : {std::pair{1, 3}, std::pair{7, 10}, std::pair{100, 18}}) {
+    TriangleMesh plant = makePlant(leaves, segments, 7);
+    EXPECT_EQ(plant.triangleCount(), plantTriangleCount(leaves, segments));
+    EXPECT_EQ(plant.positions.size(), plantVertexCount(leaves, segments));
+    EXPECT_EQ(validateMesh(plant, "plant"), 0u) << leaves << " leaves, " << segments << " segments";
+    for (const Vec3& p : plant.positions) {
+      EXPECT_GE(p.y, -0.01f);
+      EXPECT_LE(p.y, 1.05f);
+      EXPECT_LE(std::hypot(p.x, p.z), 0.75f);
+    }
+  }
+  EXPECT_EQ(plantTriangleCount(100, 18), 64200u);  // the figure scene.proto quotes
+  TriangleMesh a = makePlant(20, 12, 3), b = makePlant(20, 12, 3), c = makePlant(20, 12, 4);
+  ASSERT_EQ(a.positions.size(), c.positions.size());
+  EXPECT_EQ(0, std::memcmp(a.positions.data(), b.positions.data(), a.positions.size() * sizeof(Vec3)));
+  EXPECT_NE(0, std::memcmp(a.positions.data(), c.positions.data(), a.positions.size() * sizeof(Vec3)));
+}
+
+}  // namespace
+}  // namespace invr

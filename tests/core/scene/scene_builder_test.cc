@@ -137,6 +137,18 @@ TEST(SceneBuilder, HeightfieldRaisesAGridByItsImage) {
                   "unknown pattern 'hills'");
 }
 
+// The plant primitive from JSON: the documented defaults (100 leaves at 18 segments: 64,200
+// triangles), flat-shaded, and its bad sizes named.
+TEST(SceneBuilder, PlantFromJsonHasItsDefaultsAndNamesBadSizes) {
+  auto job = parseJobJson("{\"scene\": " + withShape(R"({"name": "p", "material": "m", "plant": {"seed": 3}})") + "}", "job.json");
+  auto scene = buildJobScene(job, {});
+  ASSERT_EQ(scene->meshes.size(), 1u);
+  EXPECT_EQ(scene->meshes[0].triangleCount(), 64200u);
+  EXPECT_TRUE(scene->meshes[0].normals.empty());
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "p", "material": "m", "plant": {"leaf_segments": 2}})")), "scene.shapes[0] (p).plant.leaf_segments");
+  EXPECT_MENTIONS(errorOf(withShape(R"({"name": "p", "material": "m", "plant": {"leaves": 200000}})")), "scene.shapes[0] (p).plant.leaves");
+}
+
 TEST(SceneBuilder, BumpsSpanTheirTwoColours) {
   ProceduralSpec spec;
   spec.pattern = "bumps";
