@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -152,8 +153,9 @@ double growthExponent(const std::vector<double>& x, const std::vector<double>& y
 }
 
 // Memory has a fixed part (the scene's other shapes, thread arenas) that hides growth in a log-log
-// slope at small sizes: fit y = a + b x^k instead (k on a grid of 0.01 in [0.05, 2.5], a and b >= 0
-// by least squares for each k) and return k; NaN (null in JSON) for fewer than three points.
+// slope at small sizes: fit y = a + b x^k instead (k on a grid of 0.01 in [0.05, 2.5]; for each k
+// a and b by unconstrained least squares, the k whose a or b comes out negative skipped) and return
+// the k of the smallest error; NaN (null in JSON) for fewer than three points or no admissible k.
 double offsetGrowthExponent(const std::vector<double>& x, const std::vector<double>& y) {
   if (x.size() < 3) return std::nan("");  // three unknowns: any k fits two points
   double bestK = std::nan(""), bestErr = 1e300;
@@ -186,7 +188,11 @@ struct ScaleArgs {
 };
 
 Json runChild(const ScaleArgs& a, const std::string& series, int value, const std::string& method) {
-  const fs::path out = fs::temp_directory_path() / ("invr_bench_scale_" + std::to_string(::getpid()) + ".json");
+  std::string name = (fs::temp_directory_path() / "invr_bench_scale_XXXXXX").string();
+  const int fd = ::mkstemp(name.data());
+  if (fd < 0) throw std::runtime_error("bench scale: cannot create a temporary file in " + fs::temp_directory_path().string());
+  ::close(fd);
+  const fs::path out = name;
   const pid_t pid = spawnProcess({fs::read_symlink("/proc/self/exe").string(), "bench", "scale", "--point", series + "=" + std::to_string(value),
                                   "--method", method, "--warmup", std::to_string(a.warmup), "--repeats", std::to_string(a.repeats)},
                                  out, out);
@@ -199,7 +205,10 @@ Json runChild(const ScaleArgs& a, const std::string& series, int value, const st
   std::string last, line;
   while (std::getline(text, line))
     if (!line.empty() && line[0] == '{') last = line;
-  return Json::parse(last);
+  const Json point = Json::parse(last, nullptr, false);
+  if (point.is_discarded() || !point.contains("step_seconds"))
+    throw std::runtime_error("bench scale: the point " + series + "=" + std::to_string(value) + " (" + method + ") printed no figures: " + text.str());
+  return point;
 }
 
 void runBenchScale(const ScaleArgs& a) {

@@ -138,7 +138,7 @@ Suite makeSuite(bool quick, bool paper) {
   return s;
 }
 
-// The papers' scale (issue 42): oxalis-hd (ReSTIR against PT and RIS on a 64K-triangle shadow,
+// The papers' scale (issue 42): oxalis-hd (ReSTIR against PT and RIS on a 68K-triangle shadow,
 // 196K texels), kitty (32 views, 16 a step) and gallery (16 views at 512 x 512, 2.4 % of the
 // pixels a step), the last two with each mini-batch pixel sampler under PT and under ReSTIR (Yan
 // et al. 2025's comparison). Long: about an hour on 2 cores at --budget-scale 1 (40 minutes at

@@ -312,7 +312,10 @@ TriangleMesh makePlant(int leaves, int leafSegments, uint64_t seed) {
     };
     // The stem: a quadratic Bezier that rises from near the origin, then arches out to its top.
     const float phi = 2.f * kPi * uniform(), spread = 0.6f * std::sqrt(uniform()), height = 0.45f + 0.55f * uniform();
-    const Vec3 base(0.04f * (uniform() - 0.5f), 0.f, 0.04f * (uniform() - 0.5f));
+    // Drawn one statement at a time: the order of a call's arguments is unspecified, and the plant
+    // must not depend on the compiler (z first: the order the committed figures were made with).
+    const float baseZ = 0.04f * (uniform() - 0.5f), baseX = 0.04f * (uniform() - 0.5f);
+    const Vec3 base(baseX, 0.f, baseZ);
     const Vec3 top(spread * std::cos(phi), height, spread * std::sin(phi)), ctrl(base.x, 0.9f * height, base.z);
     auto stemAt = [&](float t) { return base * ((1 - t) * (1 - t)) + ctrl * (2 * t * (1 - t)) + top * (t * t); };
     const uint32_t stem0 = uint32_t(m.positions.size());

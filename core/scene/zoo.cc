@@ -486,7 +486,7 @@ v1::Scene relief() {
 }
 
 // The papers' scale (Wang et al. 2023, Table 1; Yan et al. 2025). Oxalis at 512 x 512: a plant of
-// 64K triangles, lit from above left by a narrow spot, throws a detailed shadow across the left of
+// 68K triangles, lit from above left by a narrow spot, throws a detailed shadow across the left of
 // a painting whose 256 x 256 texture is the parameter; a second spot lights its right, and a dim
 // fill (2 % of the light selections, as in oxalis) is all that lights the rest. The plant is out
 // of view: every texel the camera sees is seen unoccluded.
@@ -619,7 +619,7 @@ const std::vector<ZooDef>& zoo() {
       {{"pose", "a box under an area light; its translation and rotation from one image (shape parameters)"}, pose},
       {{"octagon", "a faceted solid under 16 spotlights, seen only through its shadows on the walls (16 views); its mesh from a sphere"}, octagon},
       {{"relief", "a relief on a wall under a large light seen through a window frame (6 views); its mesh from a plane"}, relief},
-      {{"oxalis-hd", "paper scale: a 64K-triangle plant's shadow on a painting, 256x256 texture (196K values), 512x512"}, oxalisHd},
+      {{"oxalis-hd", "paper scale: a 68K-triangle plant's shadow on a painting, 256x256 texture (196K values), 512x512"}, oxalisHd},
       {{"kitty", "paper scale: a textured knot seen from 32 views around it, 16 per step; 512x48 texture (74K values)"}, kitty},
       {{"gallery", "paper scale: four varnished paintings and a glossy floor, 16 views at 512x512; a step traces 2.4 % of each view's pixels (adaptive)"}, gallery},
   };

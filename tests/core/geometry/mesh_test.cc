@@ -159,6 +159,12 @@ TEST(Mesh, PlantHasItsDocumentedCountsAndExtent) {
     }
   }
   EXPECT_EQ(plantTriangleCount(100, 18), 64200u);  // the figure scene.proto quotes
+  for (int segments = 3; segments <= 256; ++segments) {  // every leaf_segments a job may ask for
+    TriangleMesh leaf = makePlant(1, segments, 11);
+    ASSERT_EQ(leaf.triangleCount(), plantTriangleCount(1, segments)) << segments;
+    ASSERT_EQ(leaf.positions.size(), plantVertexCount(1, segments)) << segments;
+    ASSERT_EQ(validateMesh(leaf, "plant"), 0u) << segments;
+  }
   TriangleMesh a = makePlant(20, 12, 3), b = makePlant(20, 12, 3), c = makePlant(20, 12, 4);
   ASSERT_EQ(a.positions.size(), c.positions.size());
   EXPECT_EQ(0, std::memcmp(a.positions.data(), b.positions.data(), a.positions.size() * sizeof(Vec3)));
