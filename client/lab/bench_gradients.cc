@@ -381,7 +381,7 @@ struct ReconstructArgs {
   std::vector<std::string> params;  // --param: replaces the zoo job's parameters
   std::vector<std::string> sets;    // --set FIELD.PATH=VALUE: any job field (e.g. optimization.pixel_refresh=5)
   int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
-  std::vector<std::string> methods{"pt", "ris", "restir"};  // also: forward_only
+  std::vector<std::string> methods{"pt", "ris", "restir"};  // also: forward_only, derivative_only
   bool json = false;
 };
 
@@ -415,13 +415,17 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   std::vector<Variant> variants;
   if (a.pixelSamplers.empty()) {
     for (const std::string& name : a.methods) {
-      if (name == "forward_only") {
-        // ReSTIR in the primal pass only; the derivative pass samples with plain RIS.
-        GradientOptions o = optionsFor(s.problem, GradientMethod::Restir, 1);
-        o.forwardOnly = true;
+      if (name == "forward_only" || name == "derivative_only") {
+        // ReSTIR in one pass only; the other samples with plain RIS.
+        GradientOptions o = s.problem.gradient;
+        o.method = GradientMethod::Restir;
+        (name == "forward_only" ? o.forwardOnly : o.derivativeOnly) = true;
         variants.push_back({name, o});
       } else {
-        variants.push_back({name, optionsFor(s.problem, gradientMethodFromName(name), 1)});
+        // The job's own samples per pixel (spp_primal, spp_gradient, --set included).
+        GradientOptions o = s.problem.gradient;
+        o.method = gradientMethodFromName(name);
+        variants.push_back({name, o});
       }
     }
   } else {
@@ -503,6 +507,9 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       m["median_shape_error_tail"] = median(tailShape);
       m["shape_error_tail"] = tailShape;
     }
+    // The job's samples per pixel, --set included, whatever the variant.
+    m["spp_primal"] = v.options.sppPrimal;
+    m["spp_gradient"] = v.options.sppGradient;
     methods[v.name] = std::move(m);
   }
   rep.number("seeds", a.seeds);
@@ -716,9 +723,9 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   rc->add_option("--csv", ra->csv, "convergence data: method, step, seconds, loss, param_error, image_error, then one column per statistic")->capture_default_str();
   rc->add_option("--param", ra->params, "NAME[=V[,V,V]]: recover this parameter instead of the job's, from the values given (repeatable)")
       ->allow_extra_args(false);
-  rc->add_option("--methods", ra->methods, "light-sampling methods to compare: pt, ris, restir, forward_only (ReSTIR in the primal pass only)")
+  rc->add_option("--methods", ra->methods, "light-sampling methods to compare: pt, ris, restir, forward_only (ReSTIR in the primal pass only), derivative_only (in the derivative pass only)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"pt", "ris", "restir", "forward_only"}))
+      ->check(CLI::IsMember({"pt", "ris", "restir", "forward_only", "derivative_only"}))
       ->capture_default_str();
   rc->add_option("--seeds", ra->seeds, "runs per method, with the job's seed and the next ones; final errors are medians")
       ->capture_default_str();

@@ -205,7 +205,8 @@ void GradientEngine::primalPass(Step& s) {
   for (size_t k = 0; k < req.views.size(); ++k) {
     s.checkCancel();
     const int view = req.views[k];
-    auto estimator = estimatorFor(opt_, {scene_, params_, opt_, view, opt_.sppPrimal, s.restir ? &s.session.primal : nullptr}, s.restir);
+    auto estimator =
+        estimatorFor(opt_, {scene_, params_, opt_, view, opt_.sppPrimal, s.restir ? &s.session.primal : nullptr}, s.restir && !opt_.derivativeOnly);
     PassSpec spec;
     spec.kind = PassKind::Primal;
     spec.view = view;

@@ -28,6 +28,7 @@ struct GradientOptions {
   // radiusPixels * t * 2 tan(fov/2) / height, so reuse stays local whatever the scene's scale.
   float radiusPixels = 3.f;
   bool forwardOnly = false;   // restir in the primal pass only
+  bool derivativeOnly = false; // restir in the derivative pass only, RIS primal (a lab ablation: bench reconstruct)
   bool preserveOccluded = true;  // keep reservoirs no view of the batch sees (Alg. 8)
   // Look for ReSTIR neighbours among last step's pixels first when last step rendered the view
   // (see ReSTIR's estimator); false always searches the kd-tree (tests and benchmarks of that path).
