@@ -419,7 +419,8 @@ void runBenchReconstruct(const ReconstructArgs& a) {
         // ReSTIR in one pass only; the other samples with plain RIS.
         GradientOptions o = s.problem.gradient;
         o.method = GradientMethod::Restir;
-        (name == "forward_only" ? o.forwardOnly : o.derivativeOnly) = true;
+        o.forwardOnly = name == "forward_only";
+        o.derivativeOnly = name == "derivative_only";
         variants.push_back({name, o});
       } else {
         // The job's own samples per pixel (spp_primal, spp_gradient, --set included).
@@ -539,11 +540,11 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   if (shapes) {
     perVariant("median_shape_error", shapeErrors,
                "(median over seeds of the final chamfer distance over the truth's bounding-box diagonal; target <= 0.01 for restir)");
-    for (const char* baseline : {"pt", "ris", "forward_only"})
+    for (const char* baseline : {"pt", "ris", "forward_only", "derivative_only"})
       if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
         rep.number(std::string("shape_error_ratio_") + baseline + "_over_restir",
                    shapeErrors[size_t(indexOf(baseline))] / shapeErrors[size_t(indexOf("restir"))],
-                   a.scene == "relief" && std::string(baseline) != "forward_only" ? "(target >= 2 on the relief)" : "");
+                   a.scene == "relief" && (std::string(baseline) == "pt" || std::string(baseline) == "ris") ? "(target >= 2 on the relief)" : "");
   }
   if (!parameters) {
     rep.text("csv", a.csv);
@@ -552,11 +553,11 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   }
   perVariant("param_error", errors, "(RMSE of the parameters)");
   perVariant("param_error_tail", tails, "(median over seeds of the RMS parameter error over the last quarter of the budget)");
-  for (const char* baseline : {"pt", "ris", "forward_only"})
+  for (const char* baseline : {"pt", "ris", "forward_only", "derivative_only"})
     if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
       rep.number(std::string("ratio_") + baseline + "_over_restir", errors[size_t(indexOf(baseline))] / errors[size_t(indexOf("restir"))],
                  std::string(baseline) == "pt" ? "(target >= 3)" : a.scene == "tree" ? "(target >= 3 on the tree)" : "");
-  for (const char* baseline : {"pt", "ris", "forward_only"})
+  for (const char* baseline : {"pt", "ris", "forward_only", "derivative_only"})
     if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
       rep.number(std::string("tail_ratio_") + baseline + "_over_restir", tails[size_t(indexOf(baseline))] / tails[size_t(indexOf("restir"))]);
   if (indexOf("uniform") >= 0 && indexOf("adaptive") >= 0) {

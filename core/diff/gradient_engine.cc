@@ -20,7 +20,8 @@ namespace invr {
 namespace {
 
 // The estimator a pass uses: the job's method, except that "forward only" ReSTIR samples its
-// derivative pass with plain RIS, and that stage 1 leaves the reservoir chains alone.
+// derivative pass with plain RIS ("derivative only", a lab ablation, its primal pass), and that
+// stage 1 leaves the reservoir chains alone.
 std::unique_ptr<InteriorEstimator> estimatorFor(const GradientOptions& o, const EstimatorSetup& setup, bool reuse) {
   switch (o.method) {
     case GradientMethod::Pt: return makePtEstimator(setup);
@@ -52,6 +53,7 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
   INVR_INVARIANT(!opt_.variance.enabled || (opt_.method == GradientMethod::Pt && !opt_.pixels.sampler->usesStage1() && opt_.variance.spp > 0),
                  "variance passes need method pt and a sampler without stage-1 maps");
   INVR_INVARIANT(!params.hasSamplingParameters() || opt_.method == GradientMethod::Pt, "sampling parameters need method pt");
+  INVR_INVARIANT(!(opt_.forwardOnly && opt_.derivativeOnly), "ReSTIR in one pass only: forward only or derivative only, not both");
   INVR_INVARIANT(opt_.boundary.samples >= 0 && opt_.boundary.lightPoints >= 1, "boundary sample counts are valid");
   for (const auto& m : opt_.lossMasks)
     INVR_INVARIANT(m.empty() || m.size() == size_t(scene.width) * size_t(scene.height), "a loss mask matches the film");
@@ -80,7 +82,7 @@ struct GradientEngine::Step {
   EngineSession& session;
   GradientResult out;
   size_t pixels = 0;
-  bool restir = false, restirDerivative = false;
+  bool restir = false, restirPrimal = false, restirDerivative = false;
   int batchViews = 0;
   std::vector<PixelBatch> batches;              // per view of the request (pixel mini-batches; empty: every pixel)
   std::vector<std::vector<float>> maskedWeights;  // per view: the batch's weights times the target's mask
@@ -118,6 +120,7 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   s.out.gradient.assign(params_.adjointSize(), 0.0);
   s.pixels = size_t(scene_.width) * size_t(scene_.height);
   s.restir = opt_.method == GradientMethod::Restir;
+  s.restirPrimal = s.restir && !opt_.derivativeOnly;
   s.restirDerivative = s.restir && !opt_.forwardOnly;
   s.batchViews = req.batchViews > 0 ? req.batchViews : int(req.views.size());
   prepareReservoirs(s);
@@ -150,7 +153,7 @@ void GradientEngine::prepareReservoirs(Step& s) {
     for (int v : s.req.views) needsTree = needsTree || (!chain.empty() && !chain.slotsCover(v));
     if (needsTree) chain.buildIndex();
   };
-  tbb::parallel_invoke([&] { prepare(s.session.primal); }, [&] { if (s.restirDerivative) prepare(s.session.derivative); });
+  tbb::parallel_invoke([&] { if (s.restirPrimal) prepare(s.session.primal); }, [&] { if (s.restirDerivative) prepare(s.session.derivative); });
   s.out.stats.set_seconds_reservoir(s.out.stats.seconds_reservoir() + clock.seconds());
 }
 
@@ -196,7 +199,7 @@ void GradientEngine::primalPass(Step& s) {
   // Next step's reservoirs, one slot per pixel sample, written in place by the passes into buffers
   // recycled from the step before last (no fresh pages to fault in each step). The pass driver
   // writes every slot (a reservoir, or mesh = UINT32_MAX), so the old contents never leak through.
-  if (s.restir) {
+  if (s.restirPrimal) {
     s.newPrimal = s.session.primal.takeRecycled();
     s.newPrimal.resize(req.views.size() * s.pixels * size_t(opt_.sppPrimal));
   }
@@ -206,7 +209,7 @@ void GradientEngine::primalPass(Step& s) {
     s.checkCancel();
     const int view = req.views[k];
     auto estimator =
-        estimatorFor(opt_, {scene_, params_, opt_, view, opt_.sppPrimal, s.restir ? &s.session.primal : nullptr}, s.restir && !opt_.derivativeOnly);
+        estimatorFor(opt_, {scene_, params_, opt_, view, opt_.sppPrimal, s.restirPrimal ? &s.session.primal : nullptr}, s.restirPrimal);
     PassSpec spec;
     spec.kind = PassKind::Primal;
     spec.view = view;
@@ -215,7 +218,7 @@ void GradientEngine::primalPass(Step& s) {
     spec.step = req.step;
     spec.spp = opt_.sppPrimal;
     spec.batch = s.batchOf(k);
-    spec.reservoirs = s.restir ? s.newPrimal.data() + k * s.pixels * size_t(opt_.sppPrimal) : nullptr;
+    spec.reservoirs = s.restirPrimal ? s.newPrimal.data() + k * s.pixels * size_t(opt_.sppPrimal) : nullptr;
     spec.cancel = req.cancel;
     PassOutput pr = runPass(scene_, *estimator, spec, *scratch_);
     traced += s.batches.empty() ? s.pixels
@@ -460,7 +463,7 @@ void GradientEngine::storeReservoirs(Step& s) {
   // The two chains are independent: side by side.
   size_t preserved[2] = {0, 0}, carried[2] = {0, 0};
   int treeUsed[2] = {0, 0};
-  tbb::parallel_invoke([&] { if (s.restir) rebuild(s.session.primal, s.newPrimal, preserved[0], carried[0], treeUsed[0]); },
+  tbb::parallel_invoke([&] { if (s.restirPrimal) rebuild(s.session.primal, s.newPrimal, preserved[0], carried[0], treeUsed[0]); },
                        [&] { if (s.restirDerivative) rebuild(s.session.derivative, s.newDerivative, preserved[1], carried[1], treeUsed[1]); });
   v1::GradientStats& st = s.out.stats;
   st.set_reservoirs_preserved(preserved[0] + preserved[1]);
