@@ -28,19 +28,20 @@ struct OptimizeArgs {
   std::string out = "out/optimize";
   int steps = 0;
   int snapshotEvery = 0;
+  int finalSpp = 64;
   std::string method;
   SceneArgs sceneArgs;
 };
 
 // The service's snapshots (job_runner.cc), in process: renders of the first four views at the
-// final renders' 64 spp, and the parameters. The scene is written with the theta the next step
+// final renders' spp, and the parameters. The scene is written with the theta the next step
 // writes anyway, so the run's numbers do not change.
-void writeLocalSnapshot(Problem& problem, const std::vector<float>& theta, uint64_t step, const std::filesystem::path& dir) {
+void writeLocalSnapshot(Problem& problem, const std::vector<float>& theta, uint64_t step, const std::filesystem::path& dir, int spp) {
   const std::string stem = "step" + std::to_string(step);
   std::filesystem::create_directories(dir / "snapshots" / stem);
   writeParameters(dir / "snapshots" / stem, problem.params, theta, *problem.scene);
   problem.params.write(theta, *problem.scene);
-  const RenderOptions ro = transportRenderOptions(problem, 64, kFinalRenderStream);
+  const RenderOptions ro = transportRenderOptions(problem, spp, kFinalRenderStream);
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v)
     writeImage(dir / "snapshots" / (stem + "_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
 }
@@ -83,7 +84,7 @@ void runOptimize(const OptimizeArgs& a) {
       row.imageLoss = r.imageLoss;
       csv.add(std::move(row));
       if (csv.rows() % 100 == 0) csv.write();  // a long run's CSV stays current
-      if (snapshotEvery > 0 && r.theta && r.step % uint64_t(snapshotEvery) == 0) writeLocalSnapshot(problem, *r.theta, r.step, dir);
+      if (snapshotEvery > 0 && r.theta && r.step % uint64_t(snapshotEvery) == 0) writeLocalSnapshot(problem, *r.theta, r.step, dir, a.finalSpp);
       char detail[160];
       std::snprintf(detail, sizeof detail, "step %llu/%d  loss %.4g  image_loss %.4g%s", (unsigned long long)r.step, problem.steps, r.loss,
                     r.imageLoss, r.parameterError >= 0 ? ("  param_error " + BenchReport::fmt(r.parameterError)).c_str() : "");
@@ -122,7 +123,7 @@ void runOptimize(const OptimizeArgs& a) {
   } catch (const std::exception& e) {
     std::cerr << "invr: no convergence chart: " << e.what() << "\n";
   }
-  RenderOptions ro = transportRenderOptions(problem, 64, kFinalRenderStream);  // the targets' transport
+  RenderOptions ro = transportRenderOptions(problem, a.finalSpp, kFinalRenderStream);  // the targets' transport
   for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v) {
     writeImage(dir / ("final_view" + std::to_string(v) + ".png"), renderView(*problem.scene, int(v), ro).image);
     writeImage(dir / ("target_view" + std::to_string(v) + ".png"), result.targets[v]);
@@ -138,7 +139,7 @@ void runOptimize(const OptimizeArgs& a) {
   if (problem.gradient.variance.enabled) {
     GradientEngine engine(*problem.scene, problem.params, result.targets, problem.gradient);
     for (size_t v = 0; v < problem.scene->cameras.size() && v < 4; ++v)
-      writeImage(dir / ("variance_view" + std::to_string(v) + ".exr"), engine.sampleVarianceMap(int(v), 64, problem.seed));
+      writeImage(dir / ("variance_view" + std::to_string(v) + ".exr"), engine.sampleVarianceMap(int(v), std::max(2, a.finalSpp), problem.seed));
   }
   const StepReport& last = result.history.back();
   std::cout << "done: "
@@ -166,6 +167,9 @@ void addOptimizeCommands(CLI::App& app, int& exitCode) {
                   "every N steps, write renders of the first views and the parameters under OUT/snapshots/ (step<k>_view<v>.png, step<k>/parameters.json)")
       ->check(invr::wire::kPositive);
   cmd->add_option("--method", args->method, "override the method")->check(CLI::IsMember({"pt", "ris", "restir"}));
+  cmd->add_option("--final-spp", args->finalSpp, "samples per pixel of the initial, final and snapshot renders (and the variance maps)")
+      ->check(invr::wire::kPositive)
+      ->capture_default_str();
   addSceneArgs(cmd, args->sceneArgs, true);
   cmd->callback([args, &exitCode] { runOptimize(*args); exitCode = 0; });
 

@@ -321,6 +321,7 @@ struct RunArgs : JobArgs {
   bool json = false;
   bool verbose = false;
   std::string httpAddress;
+  int finalSpp = 64;
 };
 
 int runJob(const RunArgs& a) {
@@ -330,6 +331,8 @@ int runJob(const RunArgs& a) {
   std::filesystem::path out(a.out);
   if (!a.server.empty() && !a.httpAddress.empty())
     throw InputError("--http-address is the embedded server's dashboard; a running server has its own (invr-server --http-address)");
+  if (!a.server.empty() && a.finalSpp != 64)
+    throw InputError("--final-spp is the embedded server's; a running server has its own (invr-server --final-spp)");
   if (!a.server.empty()) {  // against a running server: submit, watch, fetch
     ServiceClient c = connect(a.server);
     c.uploadAssets(job, baseDir);
@@ -363,7 +366,7 @@ int runJob(const RunArgs& a) {
   } removeStore{tempStore ? store : std::filesystem::path()};
   // Worker trouble reaches the user as progress events; the log is for --verbose.
   if (!a.verbose) spdlog::set_level(spdlog::level::err);
-  EmbeddedService service(store, workers, threads, a.httpAddress);
+  EmbeddedService service(store, workers, threads, a.httpAddress, a.finalSpp);
   ServiceClient& c = service.client();
   c.uploadAssets(job, baseDir);
   // The request id is the job's content: with a kept --store, running the same job again
@@ -417,6 +420,9 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   r->add_flag("-v,--verbose", run->verbose, "the embedded server's log on stderr");
   r->add_option("--http-address", run->httpAddress,
                 "embedded: the server's dashboard at http://HOST:PORT/ while the job runs (a port alone: 127.0.0.1; docs/dashboard.md)");
+  r->add_option("--final-spp", run->finalSpp, "embedded: samples per pixel of the final (and initial) renders written with the results")
+      ->check(invr::wire::kPositive)
+      ->capture_default_str();
   r->callback([run, &exitCode] { exitCode = runJob(*run); });
 
   auto serverOpt = [](CLI::App* cmd, std::string& s) {

@@ -11,6 +11,7 @@
 # New inputs go to build-fuzz/corpus/<target>/ (kept between runs, never into the repository);
 # crashes to build-fuzz/artifacts/<target>-crash-*, with the log in build-fuzz/logs/<target>.log.
 # Reproduce one with `build-fuzz/bin/<target> <file>`; INVR_FUZZ_VERBOSE=1 says why inputs are rejected.
+# Targets run FUZZ_JOBS at a time (default: one per core; each is single-threaded).
 # Prints one line per target and `fuzz: N passed, M failed`; exits 1 if any target failed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -53,28 +54,26 @@ export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}"
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp:print_suppressions=0}"
 
 mkdir -p "$BUILD/artifacts" "$BUILD/logs" "$BUILD/corpus"
-passed=0
-failed=0
-failures=()
-for t in "${TARGETS[@]}"; do
+# One target: fuzz it, then write its verdict to $BUILD/logs/<target>.result ("ok <line>" or
+# "FAILED <line>"). Each target is single-threaded, so FUZZ_JOBS of them (default: one per core)
+# run at once; every target still gets its FUZZ_SECONDS of CPU.
+fuzz_one() {
+  local t="$1"
+  local seeds="tests/fuzz/corpus/$t" corpus="$BUILD/corpus/$t" log="$BUILD/logs/$t.log" result="$BUILD/logs/$t.result"
+  rm -f "$result"
   # Never a stale binary: a target whose build failed above still has work to do.
   if [ "$build_ok" -eq 0 ] && ! ninja -C "$BUILD" -n "$t" 2> /dev/null | grep -q "no work to do"; then
-    failed=$((failed + 1))
-    failures+=("$t")
-    printf 'fuzz: %-17s FAILED does not build (see %s)\n' "$t" "$BUILD/build.log"
-    rm -f "$BUILD/logs/$t.log"
-    continue
+    rm -f "$log"
+    printf 'FAILED fuzz: %-17s FAILED does not build (see %s)\n' "$t" "$BUILD/build.log" > "$result"
+    return
   fi
-  seeds="tests/fuzz/corpus/$t"
-  corpus="$BUILD/corpus/$t"
-  log="$BUILD/logs/$t.log"
   mkdir -p "$corpus"
   [ -d "$seeds" ] && cp "$seeds"/* "$corpus"/ 2> /dev/null || true
   # A fixed seed (FUZZ_SEED, default 1) makes a run from the committed seeds explore the same
   # inputs every time, so CI on a fresh clone is a repeatable gate; FUZZ_SEED=0 picks a random
   # seed, for longer hunts by hand.
-  args=(-max_total_time="$SECONDS_PER_TARGET" -seed="${FUZZ_SEED:-1}" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1
-        -artifact_prefix="$BUILD/artifacts/$t-")
+  local args=(-max_total_time="$SECONDS_PER_TARGET" -seed="${FUZZ_SEED:-1}" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1
+              -artifact_prefix="$BUILD/artifacts/$t-")
   [ "$t" = fuzz_job_json ] && args+=(-dict=tests/fuzz/job_json.dict)
   [ "$t" = fuzz_mitsuba_xml ] && args+=(-dict=tests/fuzz/mitsuba_xml.dict)
   # FUZZ_SECONDS=0: run every input of the corpus once, no fuzzing.
@@ -83,28 +82,51 @@ for t in "${TARGETS[@]}"; do
   # The image targets run through OpenImageIO, which leaks in its own error paths (see
   # tests/fuzz/lsan.supp): full stacks on every allocation (about 3x slower) so that the
   # suppressions can name the library's frames; leak checking stays on for invr's code.
-  asan="$ASAN_OPTIONS"
+  local asan="$ASAN_OPTIONS"
   case "$t" in fuzz_png|fuzz_exr|fuzz_hdr) asan="$asan:fast_unwind_on_malloc=0" ;; esac
-  rc=0
+  local rc=0
   ASAN_OPTIONS="$asan" "$BUILD/bin/$t" "${args[@]}" "$corpus" > "$log" 2>&1 || rc=$?
+  local runs rate added cov
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
   added=$(sed -n 's/^stat::new_units_added: *//p' "$log" | tail -1)
   cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$log" | tail -1 || true)
   if [ "$rc" -eq 0 ]; then
-    passed=$((passed + 1))
-    printf 'fuzz: %-17s ok     %9s runs %7s exec/s %5s new inputs  %s\n' "$t" "${runs:-?}" "${rate:-?}" "${added:-?}" "${cov:-}"
+    printf 'ok fuzz: %-17s ok     %9s runs %7s exec/s %5s new inputs  %s\n' "$t" "${runs:-?}" "${rate:-?}" "${added:-?}" "${cov:-}" > "$result"
   else
-    failed=$((failed + 1))
+    local artifact kind
     artifact=$(sed -n 's/.*Test unit written to \(.*\)$/\1/p' "$log" | tail -1)
     # The first report in the log: a broken FUZZ_CHECK, an uncaught exception, UBSan, ASan, LSan
     # or libFuzzer's own (timeout, out-of-memory, deadly signal).
     kind=$(grep -m1 -oE 'fuzz invariant violated: .*|terminate called .*|runtime error: .*|ERROR: (AddressSanitizer|LeakSanitizer|libFuzzer|UndefinedBehaviorSanitizer): [a-z-]+( [a-z-]+)?' "$log" || true)
     [ -z "$kind" ] && kind="exit code $rc"
-    printf 'fuzz: %-17s FAILED %s\n' "$t" "$kind"
-    printf '      input: %s\n      log:   %s\n' "${artifact:-(none written)}" "$log"
+    { printf 'FAILED fuzz: %-17s FAILED %s\n' "$t" "$kind"
+      printf '      input: %s\n      log:   %s\n' "${artifact:-(none written)}" "$log"; } > "$result"
+  fi
+}
+JOBS="${FUZZ_JOBS:-$(nproc)}"
+running=0
+for t in "${TARGETS[@]}"; do
+  if [ "$running" -ge "$JOBS" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+  fuzz_one "$t" &
+  running=$((running + 1))
+done
+wait || true
+passed=0
+failed=0
+failures=()
+for t in "${TARGETS[@]}"; do
+  result="$BUILD/logs/$t.result"
+  if [ -f "$result" ] && head -1 "$result" | grep -q '^ok '; then
+    passed=$((passed + 1))
+  else
+    failed=$((failed + 1))
     failures+=("$t")
   fi
+  [ -f "$result" ] && sed '1s/^[a-zA-Z]* //' "$result" || echo "fuzz: $t: no result (the run was interrupted)"
 done
 echo "fuzz: $passed passed, $failed failed ($(( $(date +%s) - t0 )) s)"
 if [ "$failed" -gt 0 ]; then

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <vector>
@@ -33,6 +35,29 @@ struct MeanSE {
 // fails with probability ~6e-5 per check (two-sided normal tail), and seeds are fixed so a run
 // is reproducible.
 inline constexpr double kSigmas = 4.0;
+
+// The mutation check of the statistical tests (issue 57): INVR_TEST_MUTATE=1.1 multiplies every
+// estimate they compare with a reference by 1.1 (a 10 % error), and each must then fail.
+inline double mutation() {
+  static const double factor = [] {
+    const char* v = std::getenv("INVR_TEST_MUTATE");
+    return v && *v ? std::atof(v) : 1.0;
+  }();
+  return factor;
+}
+
+// The power of a comparison at that threshold: the smallest error, relative to `reference`, that
+// it would detect, kSigmas * combinedSe / |reference| (issue 57). Every statistical test prints it
+// ("power 6.1 % (needs <= 10 %)") and fails when it is weaker than it claims: 10 % unless the test
+// says why not.
+inline double expectPowerOf(const std::string& what, double power, double claim = 0.10) {
+  std::printf("%s: power %.1f %% (needs <= %.0f %%)\n", what.c_str(), 100 * power, 100 * claim);
+  EXPECT_LE(power, claim) << what << ": a " << 100 * claim << " % error would pass unseen (power " << 100 * power << " %)";
+  return power;
+}
+inline double expectPower(const std::string& what, double combinedSe, double reference, double claim = 0.10) {
+  return expectPowerOf(what, std::abs(reference) > 0 ? kSigmas * combinedSe / std::abs(reference) : INFINITY, claim);
+}
 
 // A PNG whose header declares w x h 8-bit RGB pixels, followed by 4 bytes of (not decodable)
 // pixel data: a reader that trusts the header allocates w x h before it finds out.
@@ -87,6 +112,14 @@ struct RegionComparison {
   }
 };
 
+// The relative SE that three regions in four stay under (the power of a region comparison is
+// kSigmas times it).
+inline double upperQuartile(std::vector<double> v) {
+  if (v.empty()) return INFINITY;
+  std::sort(v.begin(), v.end());
+  return v[v.size() * 3 / 4];
+}
+
 inline RegionComparison compareRegions(const PixelStats& a, const PixelStats& b, int block) {
   RegionComparison out;
   for (int by = 0; by + block <= a.height; by += block)
@@ -103,6 +136,7 @@ inline RegionComparison compareRegions(const PixelStats& a, const PixelStats& b,
         }
       double se = std::sqrt(va + vb);
       if (!(se > 0)) continue;  // a region both estimators see as exactly constant (black)
+      ma *= mutation();          // `a` is the estimate under test, `b` the reference
       out.z.push_back((ma - mb) / se);
       out.relativeSe.push_back(mb != 0 ? se / std::abs(mb) : 0);
       out.mean.push_back(mb);

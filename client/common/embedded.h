@@ -59,9 +59,10 @@ struct LocalWorkers {
 // all connected (shards stick to the workers present when a job starts).
 class EmbeddedService {
  public:
-  // httpAddress: the server's dashboard (--http-address), empty for none.
-  EmbeddedService(const std::filesystem::path& store, int workers, int threads, const std::string& httpAddress = "")
-      : server_(options(store, httpAddress)) {
+  // httpAddress: the server's dashboard (--http-address), empty for none; finalSpp: samples per
+  // pixel of the final renders written with the results (--final-spp).
+  EmbeddedService(const std::filesystem::path& store, int workers, int threads, const std::string& httpAddress = "", int finalSpp = 64)
+      : server_(options(store, httpAddress, finalSpp)) {
     int port = server_.start();
     local_.start(workers, threads, port, store);
     // Its own loopback server: plaintext, no token, whatever the command line says about others.
@@ -78,10 +79,11 @@ class EmbeddedService {
   }
 
  private:
-  static server::ServerOptions options(const std::filesystem::path& store, const std::string& httpAddress) {
+  static server::ServerOptions options(const std::filesystem::path& store, const std::string& httpAddress, int finalSpp) {
     server::ServerOptions o;
     o.storeDir = store;
     o.httpAddress = httpAddress;
+    o.finalSpp = finalSpp;
     return o;
   }
   server::Server server_;

@@ -381,6 +381,7 @@ struct ReconstructArgs {
   std::vector<std::string> params;  // --param: replaces the zoo job's parameters
   std::vector<std::string> sets;    // --set FIELD.PATH=VALUE: any job field (e.g. optimization.pixel_refresh=5)
   int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
+  int imageErrorSpp = 16;            // the image-error meter's samples per pixel (reference and measurements)
   std::vector<std::string> methods{"pt", "ris", "restir"};  // also: forward_only, derivative_only
   bool json = false;
 };
@@ -402,7 +403,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   } catch (const InputError&) {
     throw InputError("--csv: cannot write '" + a.csv + "'");
   }
-  ImageErrorMeter meter(s.problem, 1, 16);
+  ImageErrorMeter meter(s.problem, 1, a.imageErrorSpp);
   BenchReport rep("reconstruct");
   rep.text("scene", a.scene);
   rep.number("seconds_per_method", a.seconds, "s");
@@ -729,6 +730,9 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
       ->check(CLI::IsMember({"pt", "ris", "restir", "forward_only", "derivative_only"}))
       ->capture_default_str();
   rc->add_option("--seeds", ra->seeds, "runs per method, with the job's seed and the next ones; final errors are medians")
+      ->capture_default_str();
+  rc->add_option("--image-error-spp", ra->imageErrorSpp, "samples per pixel of the image error (its reference render and each measurement, off the clock)")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   rc->add_flag("--json", ra->json, "print one JSON object");
   rc->callback([ra, &exitCode] { runBenchReconstruct(*ra); exitCode = 0; });

@@ -26,6 +26,14 @@ struct RenderOptions {
   // Checked every 256 samples of a pixel: when it becomes true, renderView throws
   // EvaluationCancelled.
   const std::atomic<bool>* cancel = nullptr;
+  // A crop window: pixels [x0, x1) x [y0, y1) are rendered, the rest of the image stays black;
+  // empty (the default) renders the whole film. A pixel's value does not depend on the window
+  // (its samples are keyed by its own index), so finite differences can be taken over just the
+  // pixels a parameter moves.
+  struct Window {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    bool empty() const { return x1 <= x0 || y1 <= y0; }
+  } window;
 };
 
 // Longest walk any setting allows (max_depth is validated against it).

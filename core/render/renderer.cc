@@ -5,6 +5,7 @@
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <mutex>
@@ -31,11 +32,16 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
   tbb::combinable<RayStats> stats;
   tbb::combinable<uint64_t> nonFinite([] { return uint64_t(0); });
   constexpr int kTile = 16;
+  int x0 = 0, y0 = 0, x1 = W, y1 = H;
+  if (!opt.window.empty()) {
+    x0 = std::clamp(opt.window.x0, 0, W), x1 = std::clamp(opt.window.x1, x0, W);
+    y0 = std::clamp(opt.window.y0, 0, H), y1 = std::clamp(opt.window.y1, y0, H);
+  }
   std::atomic<size_t> pixelsDone{0};
   std::mutex progressMutex;
 
   std::atomic<bool> cancelled{false};
-  tbb::parallel_for(tbb::blocked_range2d<int>(0, H, kTile, 0, W, kTile), [&](const tbb::blocked_range2d<int>& r) {
+  tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, kTile, x0, x1, kTile), [&](const tbb::blocked_range2d<int>& r) {
     if (cancelled.load(std::memory_order_relaxed) || (opt.cancel && opt.cancel->load(std::memory_order_relaxed))) {
       cancelled = true;
       return;
@@ -67,7 +73,7 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
     size_t done = pixelsDone.fetch_add(r.rows().size() * r.cols().size()) + r.rows().size() * r.cols().size();
     if (progress) {
       std::lock_guard lock(progressMutex);
-      progress(double(done) / (double(W) * double(H)));
+      progress(double(done) / (double(x1 - x0) * double(y1 - y0)));
     }
   });
   if (cancelled) throw EvaluationCancelled{};

@@ -49,7 +49,7 @@ PYEOF
 # The job over it runs (its targets are the run's target images).
 grep -q '"mitsuba"' exp/scene.json || fail "the job does not name the scene"
 grep -q 'target_view0.exr' exp/scene.json || fail "the job does not carry the run's targets"
-"$BIN/invr" run exp/scene.json --steps 1 --workers 2 -o again > again.log 2>&1 || fail "the exported job does not run: $(tail -3 again.log)"
+"$BIN/invr" run exp/scene.json --steps 1 --workers 2 --final-spp 4 -o again > again.log 2>&1 || fail "the exported job does not run: $(tail -3 again.log)"
 
 # A Mitsuba scene with meshes of its own, its parameters in Mitsuba's names (the light is named
 # after its shape, whose id the export must change): the service knew the meshes by content hash,

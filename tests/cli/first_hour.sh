@@ -31,7 +31,7 @@ else
   echo "default address: port 50051 is in use on this machine; that part skipped"
 fi
 
-"$BIN/invr-server" --store store --address 127.0.0.1:0 --port-file port > server.log 2>&1 &
+"$BIN/invr-server" --store store --address 127.0.0.1:0 --port-file port --final-spp 4 > server.log 2>&1 &
 PIDS+=($!)
 for _ in $(seq 100); do [ -s port ] && break; sleep 0.05; done
 export INVR_SERVER="127.0.0.1:$(cat port)"  # every client command takes it as its default

@@ -36,8 +36,8 @@ assert a.shape == b.shape and np.array_equal(a, b), 'pixels differ'
 
 check() {  # job, steps, every, extra args
   local job="$1" steps="$2" every="$3"; shift 3
-  "$BIN/invr" run "$job" --steps "$steps" --workers 2 "$@" -o "$job.plain" > "$job.plain.log" 2>&1 || fail "$job without snapshots: $(tail -3 "$job.plain.log")"
-  "$BIN/invr" run "$job" --steps "$steps" --workers 2 "$@" --snapshot-every "$every" -o "$job.snap" > "$job.snap.log" 2>&1 || fail "$job with snapshots: $(tail -3 "$job.snap.log")"
+  "$BIN/invr" run "$job" --steps "$steps" --workers 2 --final-spp 4 "$@" -o "$job.plain" > "$job.plain.log" 2>&1 || fail "$job without snapshots: $(tail -3 "$job.plain.log")"
+  "$BIN/invr" run "$job" --steps "$steps" --workers 2 --final-spp 4 "$@" --snapshot-every "$every" -o "$job.snap" > "$job.snap.log" 2>&1 || fail "$job with snapshots: $(tail -3 "$job.snap.log")"
   for k in $(seq "$every" "$every" "$steps"); do
     [ -s "$job.snap/snapshots/step${k}_view0.png" ] || fail "$job: snapshots/step${k}_view0.png not fetched"
     [ -s "$job.snap/snapshots/step${k}/parameters.json" ] || fail "$job: snapshots/step${k}/parameters.json not fetched"
@@ -70,7 +70,7 @@ grep -q "at most 1000 snapshots per job: with 5000 steps, snapshot every 5 steps
 PIDS=()
 cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null || true; done; }
 trap cleanup EXIT
-"$BIN/invr-server" --store store --address 127.0.0.1:0 --port-file port > server.log 2>&1 &
+"$BIN/invr-server" --store store --address 127.0.0.1:0 --port-file port --final-spp 4 > server.log 2>&1 &
 PIDS+=($!)
 for _ in $(seq 100); do [ -s port ] && break; sleep 0.05; done
 export INVR_SERVER="127.0.0.1:$(cat port)"

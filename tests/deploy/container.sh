@@ -12,27 +12,41 @@ fail() { echo "container: $*"; exit 1; }
 
 runtime=$(sed -n '/# runtime-packages-begin/,/# runtime-packages-end/p' "$DF" | tr ' \\' '\n\n' | grep -E '^lib|^ca-certificates$' | sort -u)
 [ -n "$runtime" ] || fail "no runtime package list between the markers"
+# One apt-cache call for the whole list (it names each package it knows once per version).
+known=$(apt-cache show $runtime 2> /dev/null | awk '/^Package:/ {print $2}' | sort -u)
 for p in $runtime; do
-  apt-cache show "$p" > /dev/null 2>&1 || fail "runtime package '$p' is not a Debian 12 package"
+  grep -qx "$p" <<< "$known" || fail "runtime package '$p' is not a Debian 12 package"
 done
 # Packages every Debian image has (Essential or required by them).
 base="libc6 libgcc-s1"
 for b in invr invr-server invr-worker; do
   [ -x "$BIN/$b" ] || fail "$BIN/$b not built"
-  for lib in $(objdump -p "$BIN/$b" | awk '/NEEDED/ {print $2}'); do
-    path=$(ldd "$BIN/$b" | awk -v n="$lib" '$1 == n {print $3}')
+  resolved=$(ldd "$BIN/$b")
+  needed=$(objdump -p "$BIN/$b" | awk '/NEEDED/ {print $2}')
+  # dpkg records a file under /lib or /usr/lib (merged /usr): every spelling of every library,
+  # asked in one dpkg -S call.
+  declare -A spellings=()
+  queries=()
+  for lib in $needed; do
+    path=$(awk -v n="$lib" '$1 == n {print $3}' <<< "$resolved")
     [ -n "$path" ] || fail "$b: $lib does not resolve"
     real=$(readlink -f "$path")
+    spellings[$lib]="$path $real ${real#/usr} $(dirname "$path")/$(basename "$real")"
+    for q in ${spellings[$lib]}; do queries+=("$q"); done
+  done
+  owners=$(dpkg -S "${queries[@]}" 2> /dev/null || true)
+  for lib in $needed; do
     pkg=""
-    # dpkg records a file under /lib or /usr/lib (merged /usr): ask for each spelling.
-    for q in "$path" "$real" "${real#/usr}" "$(dirname "$path")/$(basename "$real")"; do
-      pkg=$(dpkg -S "$q" 2> /dev/null | head -1 | cut -d: -f1) && [ -n "$pkg" ] && break
+    for q in ${spellings[$lib]}; do
+      pkg=$(awk -v f="$q" -F': ' '$2 == f {print $1; exit}' <<< "$owners" | cut -d: -f1)
+      [ -n "$pkg" ] && break
     done
-    [ -n "$pkg" ] || fail "$b: no package owns $path"
+    [ -n "$pkg" ] || fail "$b: no package owns $lib"
     if ! grep -qx "$pkg" <<< "$runtime" && ! grep -qw "$pkg" <<< "$base"; then
       fail "$b needs $lib from $pkg, which the runtime stage does not install"
     fi
   done
+  unset spellings
 done
 grep -q '^FROM debian:12 AS build' "$DF" || fail "no debian:12 build stage"
 grep -q '^FROM debian:12 AS runtime' "$DF" || fail "no debian:12 runtime stage"

@@ -6,8 +6,8 @@
 # leases, its shards move to the other worker and the job completes.
 set -euo pipefail
 BIN="$1"
-if [ "$(id -u)" -ne 0 ]; then echo "netns test: SKIPPED (needs root for ip netns)"; exit 0; fi
-command -v ip > /dev/null || { echo "netns test: SKIPPED (iproute2 missing)"; exit 0; }
+if [ "$(id -u)" -ne 0 ]; then echo "netns test: SKIPPED (needs root for ip netns)"; exit 77; fi
+command -v ip > /dev/null || { echo "netns test: SKIPPED (iproute2 missing)"; exit 77; }
 T="n$$"
 SRV="invr-$T-srv" W1="invr-$T-w1" W2="invr-$T-w2"
 DIR="$(mktemp -d)"
@@ -20,7 +20,7 @@ cleanup() {
 trap cleanup EXIT
 fail() { echo "netns: $*"; for f in "$DIR"/*.log; do echo "== $f"; tail -25 "$f"; done; exit 1; }
 
-if ! ip netns add "$SRV" 2> "$DIR/netns.err"; then echo "netns test: SKIPPED (ip netns add failed: $(cat "$DIR/netns.err"))"; exit 0; fi
+if ! ip netns add "$SRV" 2> "$DIR/netns.err"; then echo "netns test: SKIPPED (ip netns add failed: $(cat "$DIR/netns.err"))"; exit 77; fi
 ip netns add "$W1"
 ip netns add "$W2"
 for n in "$SRV" "$W1" "$W2"; do ip -n "$n" link set lo up; done
@@ -44,7 +44,7 @@ echo wrong > wrong.tok
 PORT=50551
 
 ip netns exec "$SRV" "$BIN/invr-server" --store store --address "0.0.0.0:$PORT" --tls-cert server.pem --tls-key server.key \
-  --client-token-file client.tok --worker-token-file worker.tok --heartbeat-timeout 3 --lease-seconds 120 --assign-grace 10 \
+  --client-token-file client.tok --worker-token-file worker.tok --heartbeat-timeout 3 --lease-seconds 120 --assign-grace 10 --final-spp 4 \
   --port-file port > server.log 2>&1 &
 PIDS+=($!)
 for _ in $(seq 200); do [ -s port ] && break; sleep 0.05; done

@@ -30,8 +30,9 @@ class Service:
 
     def start_server(self):
         log = open(self.tmp / "server.log", "a")
-        self.server = subprocess.Popen([invr.binary("invr-server"), "--store", str(self.tmp / "store"), "--address", self.address],
-                                       stdout=log, stderr=log)
+        # The final renders are fetched, never judged, here: 4 samples a pixel, not 64.
+        self.server = subprocess.Popen([invr.binary("invr-server"), "--store", str(self.tmp / "store"), "--address", self.address,
+                                        "--final-spp", "4"], stdout=log, stderr=log)
 
     def stop_server(self):
         self.server.terminate()
@@ -51,14 +52,28 @@ class Service:
                     p.kill()
 
 
-@pytest.fixture
-def service(tmp_path):
-    s = Service(tmp_path)
+def _started(tmp):
+    s = Service(tmp)
     s.start_server()
     s.start_worker()
-    client = invr.Client(s.address)
-    client.wait_for_workers(1, timeout=60)
-    s.client = client
+    s.client = invr.Client(s.address)
+    s.client.wait_for_workers(1, timeout=60)
+    return s
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    """One server and worker for the tests that only submit to them (each job is its own)."""
+    s = _started(tmp_path_factory.mktemp("service"))
     yield s
-    client.close()
+    s.client.close()
+    s.stop()
+
+
+@pytest.fixture
+def fresh_service(tmp_path):
+    """A server and worker of the test's own, for a test that stops or restarts them."""
+    s = _started(tmp_path)
+    yield s
+    s.client.close()
     s.stop()

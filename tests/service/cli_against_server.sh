@@ -7,7 +7,7 @@ DIR="$(mktemp -d)"
 cleanup() { kill -9 "${SERVER:-0}" "${WORKER:-0}" 2>/dev/null || true; rm -rf "$DIR"; }
 trap cleanup EXIT
 
-"$BIN/invr-server" --store "$DIR/store" --address 127.0.0.1:0 --port-file "$DIR/port" >"$DIR/server.log" 2>&1 &
+"$BIN/invr-server" --store "$DIR/store" --address 127.0.0.1:0 --port-file "$DIR/port" --final-spp 4 >"$DIR/server.log" 2>&1 &
 SERVER=$!
 for _ in $(seq 100); do [ -s "$DIR/port" ] && break; sleep 0.05; done
 ADDR="127.0.0.1:$(cat "$DIR/port")"

@@ -351,8 +351,9 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
   TempDir tmp;
   Cluster c(tmp.path);
   // The heartbeat timeout is long, so only the lease can notice the stall. The lease covers a
-  // healthy worker's longest task (building a moved shard's session) even under sanitizers.
-  const std::string lease = std::to_string(scaledSeconds(12));
+  // healthy worker's longest task (building a moved shard's session: its targets at 2 spp, about
+  // 1 s on one loaded core) several times over, even under sanitizers.
+  const std::string lease = std::to_string(scaledSeconds(6));
   // Final renders at 4 spp: at the default 64 a shard's four views take about 18 s on one
   // loaded core, longer than the lease, and the healthy worker would lose them too.
   c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120", "--final-spp", "4"});
@@ -360,6 +361,7 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
   c.startWorker(1);
   v1::JobSpec job = smallJob("backlit", 6);
   job.mutable_optimization()->set_shards(2);
+  job.mutable_optimization()->set_target_spp(2);
   std::string id;
   ASSERT_TRUE(c.submit(job, &id).ok());
   auto evs = c.watch(id, 0, [&](const v1::ProgressEvent& e) { return e.has_step() && e.step().step() >= 2; });
@@ -380,10 +382,12 @@ TEST(Robustness, AWorkerStalledLongerThanItsLeaseIsNotGivenItBackAndTheJobComple
 TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
   TempDir tmp;
   Cluster c(tmp.path);
-  const std::string lease = std::to_string(scaledSeconds(12));
+  // As above: several times the longest healthy task (targets at 2 spp).
+  const std::string lease = std::to_string(scaledSeconds(6));
   // Final renders at 4 spp: at the default 64 a shard's four views take about 18 s on one
-  // loaded core, longer than the lease, and the healthy worker would lose them too.
-  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120", "--final-spp", "4"});
+  // loaded core, longer than the lease, and the healthy worker would lose them too. No grace
+  // period: both workers are connected before the job is submitted.
+  c.startServer(0, {"--lease-seconds", lease, "--heartbeat-timeout", "120", "--final-spp", "4", "--assign-grace", "0"});
   std::atomic<int> received{0};
   // Connected first, so it gets a shard; it never answers, and its heartbeats say it is busy.
   ScriptedWorker hung(
@@ -397,6 +401,7 @@ TEST(Robustness, AWorkerThatHeartbeatsWhileHungGetsNoSecondLease) {
   waitForWorkers(c, 2);
   v1::JobSpec job = smallJob("backlit", 3);
   job.mutable_optimization()->set_shards(2);
+  job.mutable_optimization()->set_target_spp(2);
   std::string id;
   ASSERT_TRUE(c.submit(job, &id).ok());
   auto evs = c.watch(id);
@@ -559,7 +564,15 @@ TEST(Robustness, WatchResumesAcrossAServerRestart) {
                         tmp.path / "watch.log");
   std::this_thread::sleep_for(500ms);
   c.killServer();
-  std::this_thread::sleep_for(12s);  // longer than any retry budget the old client had (about 10 s)
+  const auto down = std::chrono::steady_clock::now();
+  // Meanwhile, a watch with a short budget gives up after --reconnect-timeout, saying how to resume.
+  pid_t giveUp = spawn({(kBin / "invr").string(), "watch", id, "--server", c.address(), "--from", "3", "--reconnect-timeout", "2"},
+                       tmp.path / "giveup.log");
+  EXPECT_EQ(waitExit(giveUp, 30), 5);
+  std::string said = readFile(tmp.path / "giveup.log");
+  EXPECT_NE(said.find("server unavailable for 2 s"), std::string::npos) << said;
+  EXPECT_NE(said.find("invr watch " + id + " --from 3"), std::string::npos) << said;
+  std::this_thread::sleep_until(down + 12s);  // longer than any retry budget the old client had (about 10 s)
   c.startServer(port);
   int code = waitExit(watcher, 300);
   std::string out = readFile(tmp.path / "watch.log");
@@ -567,14 +580,6 @@ TEST(Robustness, WatchResumesAcrossAServerRestart) {
   EXPECT_NE(out.find("\"state\":\"SUCCEEDED\""), std::string::npos) << out;
   EXPECT_NE(out.find("server restarted; queued again"), std::string::npos) << out;
   EXPECT_EQ(c.get(id).state(), v1::SUCCEEDED);
-  // With the server gone for good, watch gives up after --reconnect-timeout, saying how to resume.
-  c.killServer();
-  pid_t giveUp = spawn({(kBin / "invr").string(), "watch", id, "--server", c.address(), "--from", "3", "--reconnect-timeout", "2"},
-                       tmp.path / "giveup.log");
-  EXPECT_EQ(waitExit(giveUp, 30), 5);
-  std::string said = readFile(tmp.path / "giveup.log");
-  EXPECT_NE(said.find("server unavailable for 2 s"), std::string::npos) << said;
-  EXPECT_NE(said.find("invr watch " + id + " --from 3"), std::string::npos) << said;
 }
 
 TEST(Robustness, ASecondServerOnTheSamePortOrStoreExitsWithAClearError) {

@@ -69,7 +69,8 @@ struct ClusterRun {
 ClusterRun runOnWorkers(const v1::JobSpec& job, int workers) {
   TempDir tmp;
   Cluster c(tmp.path);
-  c.startServer();
+  // startWorker() waits until each worker is connected: no grace period to wait for more.
+  c.startServer(0, {"--assign-grace", "0"});
   for (int w = 0; w < workers; ++w) c.startWorker(1);
   std::string id;
   ClusterRun run;
@@ -407,13 +408,14 @@ TEST(Service, AWorkerStoppedMidTaskHandsItBackWithoutCostingAnAttempt) {
 TEST(Service, ExpiredLeasesFailTheJobAfterBoundedAttempts) {
   TempDir tmp;
   Cluster c(tmp.path);
-  // Leases of 50 ms cannot cover building a session (rendering targets at 256 spp).
+  // Leases of 50 ms cannot cover building a session (rendering targets at 16 spp, seconds on one
+  // thread; the lease is checked every 100 ms).
   // A worker whose lease expired gets the next lease once it proves alive, so every lease must be
   // too short: 50 ms is less than one gradient step.
   c.startServer(0, {"--lease-seconds", "0.05", "--max-attempts", "2"});
   c.startWorker(1);
   v1::JobSpec job = smallJob("cornell", 3);
-  job.mutable_optimization()->set_target_spp(256);
+  job.mutable_optimization()->set_target_spp(16);
   std::string id;
   ASSERT_TRUE(c.submit(job, &id).ok());
   auto evs = c.watch(id);
@@ -494,10 +496,11 @@ TEST(Service, ParameterVectorsBeyondFourMebibytesTravel) {
 TEST(Service, EvictedSessionsAreRebuiltAndTheJobCompletes) {
   TempDir tmp;
   Cluster c(tmp.path);
-  c.startServer();
+  c.startServer(0, {"--assign-grace", "0"});
   c.startWorker(2, {"--max-sessions", "1"});  // two shards, room for one session
   v1::JobSpec job = smallJob("backlit", 3);
   job.mutable_optimization()->set_shards(2);
+  job.mutable_optimization()->set_target_spp(2);  // every eviction renders the shard's targets again
   std::string id;
   ASSERT_TRUE(c.submit(job, &id).ok());
   auto evs = c.watch(id);

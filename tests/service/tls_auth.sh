@@ -34,7 +34,7 @@ grep -q "without TLS (--insecure)" insecure.log || fail "no warning for --insecu
 kill "${PIDS[-1]}"
 
 # 2. TLS and tokens.
-"$BIN/invr-server" --store s2 --address 0.0.0.0:0 --tls-cert server.pem --tls-key server.key \
+"$BIN/invr-server" --store s2 --address 0.0.0.0:0 --tls-cert server.pem --tls-key server.key --final-spp 4 \
   --client-token-file client.tok --worker-token-file worker.tok --port-file p2 >server.log 2>&1 &
 PIDS+=($!)
 waitport p2
@@ -80,5 +80,12 @@ set +e
 "$BIN/invr" list --server "$A3" --tls-ca ca.pem 2>err4; e4=$?
 set -e
 [ "$e4" = 5 ] || fail "mutual TLS without a client certificate: exit $e4"
-"$BIN/invr" list --server "$A3" --tls-ca ca.pem --tls-cert client.pem --tls-key client.key >/dev/null || fail "mutual TLS with a certificate refused"
+# (Up to three tries: on a loaded machine the first handshake after the refused one above has
+# been seen to fail once, "Handshake write failed"; a certificate that is refused fails all three.)
+ok=0
+for _ in 1 2 3; do
+  if "$BIN/invr" list --server "$A3" --tls-ca ca.pem --tls-cert client.pem --tls-key client.key >/dev/null 2>err5; then ok=1; break; fi
+  sleep 1
+done
+[ "$ok" = 1 ] || fail "mutual TLS with a certificate refused: $(cat err5)"
 echo "tls and tokens: ok"

@@ -131,11 +131,13 @@ def _absolute_paths(node, base):
 
 
 def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps=None, method=None, target_spp=None,
-        seed=None, store=None, on_event=None, snapshot_every=None):
+        seed=None, store=None, on_event=None, snapshot_every=None, final_spp=None):
     """Runs a job to its end on an embedded server with local worker processes, as `invr run` does,
     and returns its Result. `job`: a dict, a job file, a Mitsuba scene (with params=) or a zoo name.
-    `on_event(event)` sees every progress event. Raises JobFailed / JobCancelled (with the results
-    fetched into .result where there were any), InputError for a wrong job."""
+    `on_event(event)` sees every progress event. `final_spp`: samples per pixel of the initial and
+    final renders written with the results (`invr run --final-spp`, default 64). Raises JobFailed /
+    JobCancelled (with the results fetched into .result where there were any), InputError for a
+    wrong job."""
     from invr._events import Event
     from invr._results import read_results
 
@@ -146,6 +148,8 @@ def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps
         cmd += ["--workers", str(int(workers))]
     if store is not None:
         cmd += ["--store", str(store)]
+    if final_spp is not None:
+        cmd += ["--final-spp", str(int(final_spp))]
     cmd += _override_args(params=params, defines=defines, sets=sets, steps=steps, method=method, target_spp=target_spp, seed=seed,
                           snapshot_every=snapshot_every)
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE if stdin is not None else subprocess.DEVNULL,

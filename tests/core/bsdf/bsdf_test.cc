@@ -111,7 +111,8 @@ TEST(Bsdf, SamplingMatchesPdfChiSquare) {
         double phi = std::atan2(bs->wi.y, bs->wi.x);
         if (phi < 0) phi += 2 * M_PI;
         int pj = std::clamp(int(phi / (2 * M_PI) * nPhi), 0, nPhi - 1);
-        observed[size_t(ci * nPhi + pj)] += 1;
+        // INVR_TEST_MUTATE: a sampler that many times too often above 60 degrees from the pole.
+        observed[size_t(ci * nPhi + pj)] += ci >= 3 * nTheta / 4 ? test::mutation() : 1.0;
       }
       for (int i = 0; i < nTheta; ++i)
         for (int j = 0; j < nPhi; ++j)
@@ -128,6 +129,11 @@ TEST(Bsdf, SamplingMatchesPdfChiSquare) {
       if (pooledExp >= 5) { chi2 += (pooledObs - pooledExp) * (pooledObs - pooledExp) / pooledExp; ++dof; }
       else EXPECT_LT(pooledObs, 5 + 5 * std::sqrt(5.0)) << c.name << ": samples where the pdf says there are none";
       EXPECT_LT(chi2, chi2Threshold(dof - 1)) << c.name << " theta " << theta << " dof " << dof;
+      // Power: a sampler off by a relative delta over cells holding a tenth of the probability adds
+      // about delta^2 n / 10 to chi2 (on top of its expected dof - 1): the smallest delta that
+      // crosses the threshold.
+      test::expectPowerOf(std::string(c.name) + " theta " + std::to_string(int(theta)) + ", an error over a tenth of the probability",
+                          std::sqrt(std::max(0.0, chi2Threshold(dof - 1) - (dof - 1)) / (0.1 * n)));
     }
 }
 
@@ -143,6 +149,8 @@ TEST(Bsdf, AlbedoAtMostOne) {
         m.add(bs ? maxComponent(bs->weight) : 0.0);
       }
       EXPECT_LE(m.mean, 1.0 + test::kSigmas * m.se()) << c.name << " theta " << theta;
+      // A bound, not an estimate: an albedo 10 % over one would show.
+      test::expectPower(std::string(c.name) + " theta " + std::to_string(int(theta)) + ", albedo <= 1", m.se(), 1.0);
     }
 }
 

@@ -11,6 +11,7 @@
 
 #include "core/diff/parameters.h"
 #include "core/render/renderer.h"
+#include "shared_reference.h"
 #include "test_util.h"
 
 namespace invr::test {
@@ -27,7 +28,12 @@ struct FdReference {
   // Registers the parameters, renders the target at the truth, and sets theta = 0.8 truth.
   FdReference(const char* sceneJson, std::initializer_list<const char*> params, RenderOptions o = {}, int lossSamples = 512)
       : scene(sceneFromJson(sceneJson)), options(o), lossSpp(lossSamples) {
-    for (const char* p : params) reg.add(*scene, p);
+    id = sceneJson;
+    for (const char* p : params) {
+      reg.add(*scene, p);
+      id += std::string("|") + p;
+    }
+    id += "|depth " + std::to_string(o.maxDepth) + " estimator " + std::to_string(int(o.estimator));
     truth = reg.read(*scene);
     target = render(truth, 1024, 5);
     reg.write(truth, *scene);
@@ -49,20 +55,29 @@ struct FdReference {
   }
   // Central difference of the converged loss in component k, with its standard error. Light
   // selection is set once at theta and kept for both sides, so random numbers stay common.
+  // Computed once per build of the test binary (tests/shared_reference.h), whichever test of the
+  // scene needs it first.
   const MeanSE& finiteDifference(size_t k) {
     auto it = cache.find(k);
     if (it != cache.end()) return it->second;
-    reg.write(theta, *scene);
-    MeanSE fd;
-    float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
-    for (uint64_t seed = 0; seed < uint64_t(fdSeeds); ++seed) {
-      auto plus = theta, minus = theta;
-      plus[k] += h;
-      minus[k] -= h;
-      fd.add((convergedLoss(plus, seed) - convergedLoss(minus, seed)) / (2.0 * h));
-    }
-    return cache[k] = fd;
+    const float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
+    char key[128];
+    std::snprintf(key, sizeof key, "fd_reference k=%zu h=%a seeds=%d spp=%d|%016llx", k, double(h), fdSeeds, lossSpp,
+                  (unsigned long long)detail::fnv1a(id));
+    return cache[k] = sharedMeanSE(key, [&] {
+      reg.write(theta, *scene);
+      MeanSE fd;
+      for (uint64_t seed = 0; seed < uint64_t(fdSeeds); ++seed) {
+        auto plus = theta, minus = theta;
+        plus[k] += h;
+        minus[k] -= h;
+        fd.add((convergedLoss(plus, seed) - convergedLoss(minus, seed)) / (2.0 * h));
+      }
+      reg.write(theta, *scene);
+      return fd;
+    });
   }
+  std::string id;  // the scene, parameters and transport: part of every reference's key
   std::map<size_t, MeanSE> cache;
 };
 

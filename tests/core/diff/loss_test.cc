@@ -53,8 +53,10 @@ TEST(Loss, TwoRenderLossIsUnbiased) {
       two.add(unbiasedImageLoss(k, a, b, T));
       one.add(imageLoss(k, a, T, nullptr));
     }
+    two.mean *= test::mutation();
     std::printf("%s: loss(E) %.5f, two renders %.5f (se %.5f), one render %.5f\n", lossName(k), truth, two.mean, two.se(), one.mean);
     EXPECT_NEAR(two.mean, truth, test::kSigmas * two.se()) << lossName(k);
+    test::expectPower(std::string(lossName(k)) + ": two-render loss", two.se(), truth);
     EXPECT_GT(std::abs(one.mean - truth), 10 * test::kSigmas * one.se()) << lossName(k) << ": the single-render bias should show";
   }
 }

@@ -72,7 +72,9 @@ TEST(EnvironmentLight, PdfIntegratesToOneAndEstimatorIsUnbiased) {
     LightSample ls = sampleLight(l, none, Vec3(0.f), {s.next1D(), s.next1D()});
     est.add(ls.pdf > 0.f ? luminance(ls.radiance) / ls.pdf : 0.0);
   }
+  est.mean *= test::mutation();
   EXPECT_NEAR(est.mean, radianceIntegral, test::kSigmas * est.se() + 1e-4 * radianceIntegral);
+  test::expectPower("E[L / pdf] against the integral", est.se() + 1e-4 * radianceIntegral / test::kSigmas, radianceIntegral);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/math/rng.h"
+#include "test_util.h"
 
 namespace invr {
 
@@ -49,9 +50,11 @@ TEST(Rng, UniformMeanAndVariance) {
     sum += u;
     sum2 += u * u;
   }
-  double mean = sum / n, var = sum2 / n - mean * mean;
+  double mean = sum / n * test::mutation(), var = sum2 / n - mean * mean;
   EXPECT_NEAR(mean, 0.5, 4 * std::sqrt(1.0 / 12 / n));
+  test::expectPower("mean of U(0,1)", std::sqrt(1.0 / 12 / n), 0.5);
   EXPECT_NEAR(var, 1.0 / 12, 0.002);
+  test::expectPowerOf("variance of U(0,1) (a fixed tolerance of 0.002)", 0.002 * 12);
 }
 
 TEST(Distribution1D, PmfMatchesWeightsAndSamplingFrequencies) {
@@ -67,7 +70,8 @@ TEST(Distribution1D, PmfMatchesWeightsAndSamplingFrequencies) {
   EXPECT_EQ(counts[1], 0);
   for (int i : {0, 2, 3}) {
     double p = d.pmf(size_t(i));
-    EXPECT_NEAR(counts[size_t(i)] / double(n), p, 4 * std::sqrt(p * (1 - p) / n));
+    EXPECT_NEAR(counts[size_t(i)] / double(n) * (i == 0 ? test::mutation() : 1.0), p, 4 * std::sqrt(p * (1 - p) / n));
+    test::expectPower("cell " + std::to_string(i), std::sqrt(p * (1 - p) / n), p);
   }
 }
 
@@ -144,8 +148,9 @@ TEST(Warps, QuarterPiSinCosMatchesLibm) {
 }
 
 TEST(Warps, CosineHemisphereMatchesItsPdf) {
-  // Histogram over (cos theta, phi) cells against the integral of cos(theta)/pi over each cell.
-  const int nc = 8, np = 16, n = 400000;
+  // Histogram over (cos theta, phi) cells against the integral of cos(theta)/pi over each cell;
+  // enough samples that the emptiest cell (1/1024 of them) would show a 10 % error.
+  const int nc = 8, np = 16, n = 2000000;
   std::vector<double> counts(nc * np);
   Sampler s(RngKey{5});
   for (int i = 0; i < n; ++i) {
@@ -155,12 +160,16 @@ TEST(Warps, CosineHemisphereMatchesItsPdf) {
     int pj = std::min(int(phi / (2 * M_PI) * np), np - 1);
     counts[size_t(ci * np + pj)]++;
   }
+  counts[0] *= test::mutation();
+  double worst = 0;
   for (int ci = 0; ci < nc; ++ci) {
     double c0 = double(ci) / nc, c1 = double(ci + 1) / nc;
     double p = (c1 * c1 - c0 * c0) / np;  // integral of cos/pi dcos dphi over the cell
+    worst = std::max(worst, 4 * std::sqrt(p * (1 - p) / n) / p);
     for (int pj = 0; pj < np; ++pj)
       EXPECT_NEAR(counts[size_t(ci * np + pj)] / n, p, 4 * std::sqrt(p * (1 - p) / n)) << ci << "," << pj;
   }
+  test::expectPowerOf("the emptiest cell", worst);
 }
 
 TEST(Warps, TriangleMapIsUniform) {
@@ -176,7 +185,9 @@ TEST(Warps, TriangleMapIsUniform) {
     ASSERT_GE(b0, -1e-6f);
     counts[b.x > 0.5f ? 0 : b.y > 0.5f ? 1 : b0 > 0.5f ? 2 : 3]++;
   }
-  for (int k = 0; k < 4; ++k) EXPECT_NEAR(counts[k] / double(n), 0.25, 4 * std::sqrt(0.25 * 0.75 / n));
+  for (int k = 0; k < 4; ++k)
+    EXPECT_NEAR(counts[k] / double(n) * (k == 0 ? test::mutation() : 1.0), 0.25, 4 * std::sqrt(0.25 * 0.75 / n));
+  test::expectPower("each sub-triangle", std::sqrt(0.25 * 0.75 / n), 0.25);
 }
 
 TEST(Warps, CosineHemisphereStaysOnUnitHemisphere) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/math/rng.h"
+#include "test_util.h"
 
 namespace invr {
 namespace {
@@ -102,8 +103,11 @@ TEST(Sobol, ValuesAreUniformAndSlotsUncorrelated) {
       prod[2] += double(b) * c.x;
       prod[3] += double(a.y) * c.y;
     }
-    for (double m : mean) EXPECT_NEAR(m / n, 0.5, 5.0 / std::sqrt(12.0 * n)) << "sample " << sample;
-    for (double q : prod) EXPECT_NEAR(q / n, 0.25, 5.0 * std::sqrt(7.0 / 144.0 / double(n))) << "sample " << sample;
+    // 5 SE, not 4: 27 checks here.
+    for (double m : mean) EXPECT_NEAR(m / n * test::mutation(), 0.5, 5.0 / std::sqrt(12.0 * n)) << "sample " << sample;
+    for (double q : prod) EXPECT_NEAR(q / n * test::mutation(), 0.25, 5.0 * std::sqrt(7.0 / 144.0 / double(n))) << "sample " << sample;
+    test::expectPowerOf("means, sample " + std::to_string(sample), 5.0 / std::sqrt(12.0 * n) / 0.5);
+    test::expectPowerOf("products, sample " + std::to_string(sample), 5.0 * std::sqrt(7.0 / 144.0 / double(n)) / 0.25);
   }
 }
 

@@ -41,7 +41,9 @@ TEST(Renderer, WhiteFurnace) {
     test::MeanSE m;
     for (int y = 0; y < r.image.height(); ++y)
       for (int x = 0; x < r.image.width(); ++x) m.add(r.image.at(x, y, 1));
+    m.mean *= test::mutation();
     EXPECT_NEAR(m.mean, 1.0, test::kSigmas * m.se() + 1e-5) << "depth " << v.depth << ", " << samplerKindName(v.sampler);
+    test::expectPower("furnace, depth " + std::to_string(v.depth) + ", " + samplerKindName(v.sampler), m.se(), 1.0);
     EXPECT_EQ(r.nonFiniteSamples, 0u);
   }
 }
@@ -68,6 +70,30 @@ TEST(Renderer, BitIdenticalForAnyThreadCount) {
   }
 }
 
+// A crop window renders exactly the whole film's pixels inside it (samples are keyed by the pixel)
+// and leaves the rest black; a window reaching past the film is clipped to it.
+TEST(Renderer, CropWindowRendersThoseVeryPixels) {
+  auto spec = zooScene("cornell");
+  spec.mutable_film()->set_width(40);
+  spec.mutable_film()->set_height(30);
+  auto scene = buildScene(spec);
+  RenderOptions opt;
+  opt.spp = 2;
+  opt.maxDepth = 3;
+  const Image whole = renderView(*scene, 0, opt).image;
+  opt.window = {7, 5, 60, 19};
+  const Image crop = renderView(*scene, 0, opt).image;
+  int inside = 0;
+  for (int y = 0; y < 30; ++y)
+    for (int x = 0; x < 40; ++x) {
+      const bool in = x >= 7 && y >= 5 && y < 19;
+      const Rgb a = crop.rgb(x, y), b = in ? whole.rgb(x, y) : Rgb(0.f, 0.f, 0.f);
+      ASSERT_TRUE(a.x == b.x && a.y == b.y && a.z == b.z) << "pixel " << x << "," << y;
+      inside += in && (b.x + b.y + b.z) > 0.f;
+    }
+  EXPECT_GT(inside, 100);  // the window saw the scene, not black
+}
+
 // The seed selects the noise, not the image it estimates: renders with seeds 0-31 and 32-63 agree
 // region by region within their standard errors (from each pixel's own spread), and two seeds'
 // deviations from that mean are uncorrelated (independent noise, not the same noise shifted).
@@ -90,6 +116,7 @@ TEST(Renderer, SeedChangesNoiseNotExpectation) {
   EXPECT_LT(c.maxAbsZ(), 4.5);
   EXPECT_GT(c.meanZ2(), 0.4);
   EXPECT_LT(c.meanZ2(), 1.8);
+  test::expectPower("seeds 0-31 against 32-63, three regions in four", test::upperQuartile(c.relativeSe), 1.0);
   // Correlation of the two seeds' deviations over the pixels with any noise: about N(0, 1/n).
   double sxy = 0, sxx = 0, syy = 0;
   size_t n = 0;
@@ -141,6 +168,8 @@ TEST(Renderer, SobolSamplesEstimateTheSameImageWithLessNoise) {
     ASSERT_GE(c.z.size(), 40u);
     EXPECT_LT(c.maxAbsZ(), 4.5);
     EXPECT_LT(c.meanZ2(), 1.8);
+    test::expectPower(std::string(est == LightEstimator::Ris ? "ris" : "nee") + ": sobol against independent, three regions in four",
+                      test::upperQuartile(c.relativeSe), 1.0);
     EXPECT_GT(varInd / varSob, 1.2);  // 16 stratified samples: measured 4.1 (nee) and 1.5 (ris), printed above
   }
 }

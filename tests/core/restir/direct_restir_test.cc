@@ -90,8 +90,9 @@ void runChains(float mCap, const char* label) {
   }
   for (int t = 0; t < steps; ++t) {
     float bulb = 1.f + 0.8f * std::sin(float(t) * 1.3f);
-    EXPECT_NEAR(perStep[size_t(t)].mean, toy.expected(bulb), test::kSigmas * perStep[size_t(t)].se())
+    EXPECT_NEAR(perStep[size_t(t)].mean * test::mutation(), toy.expected(bulb), test::kSigmas * perStep[size_t(t)].se())
         << label << " step " << t << " se " << perStep[size_t(t)].se();
+    test::expectPower(std::string(label) + ", step " + std::to_string(t), perStep[size_t(t)].se(), toy.expected(bulb));
   }
   // Reuse really happened: confidence accumulated over the steps (up to the cap).
   EXPECT_GT(meanM, std::min(2.f * steps * 0.9f, mCap));
@@ -166,7 +167,8 @@ TEST(Restir, ReuseWhileAnOccluderMovesTestsSupportWhereSamplesWereCreated) {
     const double se = std::sqrt(e.se() * e.se() + r.se() * r.se()), seq = std::sqrt(q.se() * q.se() + r.se() * r.se());
     std::printf("step %d: reference %.4f (se %.4f), created geometry %.4f, current geometry (shortcut) %.4f\n", t, r.mean, r.se(),
                 e.mean, q.mean);
-    EXPECT_NEAR(e.mean, r.mean, test::kSigmas * se) << "step " << t;
+    EXPECT_NEAR(e.mean * test::mutation(), r.mean, test::kSigmas * se) << "step " << t;
+    test::expectPower("step " + std::to_string(t) + ": created geometry against no reuse", se, r.mean);
     shortcutBiased = shortcutBiased || std::abs(q.mean - r.mean) > test::kSigmas * seq;
   }
   EXPECT_TRUE(shortcutBiased) << "the shortcut agreed at every step: this scene does not exercise the support test";
