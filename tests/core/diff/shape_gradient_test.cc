@@ -269,8 +269,9 @@ struct Check {
 // comparison claims to see: |gap| <= 4 SE + 2 % of the derivative, with the power to see a gap of
 // 10 %. The engine's sessions are cheap next to a reference: a reference gets the seeds its noise
 // needs (its SE is printed beside the estimate's), and the sessions give each comparison the rest
-// of its power.
-MeanSE validatedFd(ShapeCase& c, size_t k, float h, const char* what, int seeds = 4) {
+// of its power. A diagnosis (`claimsPower` false) measures and prints, and claims no power: the
+// knot's back fill lights so little of what the camera sees that its reference is mostly noise.
+MeanSE validatedFd(ShapeCase& c, size_t k, float h, const char* what, int seeds = 4, bool claimsPower = true) {
   char key[160];
   std::snprintf(key, sizeof key, "shape fd k=%zu h=%a seeds=%d|", k, double(h), seeds);
   std::string description = std::string(key) + c.id + "|theta";
@@ -298,7 +299,10 @@ MeanSE validatedFd(ShapeCase& c, size_t k, float h, const char* what, int seeds 
   std::printf("%s: fd(h=%g) %+.4e (se %.1e), fd(h/2) %+.4e (se %.1e), %d seeds over %.0f %% of the film (%.1f s)\n", what, double(h), a.mean,
               a.se(), b.mean, b.se(), seeds, 100 * v[size_t(2 * seeds)], clock.seconds());
   EXPECT_LE(std::abs(gap.mean), kSigmas * gap.se() + 0.02 * std::abs(a.mean)) << what << ": h and h/2 disagree by " << gap.mean;
-  test::expectPower(std::string(what) + ", the reference at h against h/2", gap.se() + 0.02 * std::abs(a.mean) / kSigmas, a.mean);
+  const std::string gapWhat = std::string(what) + ", the reference at h against h/2";
+  const double gapSe = gap.se() + 0.02 * std::abs(a.mean) / kSigmas;
+  if (claimsPower) test::expectPower(gapWhat, gapSe, a.mean);
+  else std::printf("%s: power %.1f %% (a diagnosis: printed, not claimed)\n", gapWhat.c_str(), 100 * kSigmas * gapSe / std::abs(a.mean));
   return a;
 }
 
@@ -443,6 +447,8 @@ void cardBesideTheViewUnderASky(GradientMethod method, int maxSessions, double c
   EXPECT_FALSE(run(c, 0, fd, noSecondary, 96, "pt without the secondary term").agrees());
 }
 
+// 60-80 s: the sky's soft shadow reaches every floor pixel, so the reference (16 seeds) covers the
+// whole film, and PT needs its 2048 sessions for 8 %.
 // ReSTIR beside the view is the deep suite's (ShapeGradientDeep.RestirShadowsUnderAConstantSky):
 // its sessions of three steps (8192 border samples each) cost about 40 ms, and 10 % takes 2048 of
 // them, about 90 s.
@@ -824,7 +830,7 @@ int knotDiagnosisSessions() {
 
 void diagnoseKnot(KnotLights lights, bool floor, const char* what) {
   ShapeCase c(knotScene(lights, floor), "shapes/knot/translation", {0.06f, -0.04f, 0.05f}, knotId(lights, floor), {1024, false});
-  const MeanSE fd = validatedFd(c, 0, 0.005f, what, 64);
+  const MeanSE fd = validatedFd(c, 0, 0.005f, what, 64, false);
   const int sessions = knotDiagnosisSessions();
   std::printf("%d sessions per estimate\n", sessions);
   GradientOptions all = shapeOptions(GradientMethod::Pt);
@@ -912,6 +918,7 @@ TEST(ShapeGradient, VertexShadowBorderUnderAPointLight) {
   expectTermPower(r, "card vertices, point light");
 }
 
+// About 70 s: PT's plain light sampling needs the full 2048 sessions for 8.6 %.
 TEST(ShapeGradient, VertexShadowBorderUnderAnAreaLight) {
   ShapeCase c(cardScene(true, false), "shapes/card/vertices", everyVertexMovedBy(12, Vec3(0.08f, -0.05f, 0.1f)));
   c.along = vertexDirection(12, 4);
@@ -940,6 +947,8 @@ void vertexShadowBorderUnderASky(int fdSeeds, int maxSessions, double claim) {
 // so reused light samples and edge reservoirs were made in other geometries. The default tests
 // their support against the vertices they were made with (kept per step with a BVH); the paper's
 // shortcut tests it in the current geometry. Both are measured against FD.
+// 60-100 s: the reference needs 16 seeds over two thirds of the film (the card in view and its
+// shadow) for the h/2 check to reach 6 %; the sessions are a fifth of the time.
 TEST(ShapeGradient, VertexRestirWhileTheMeshDeforms) {
   ShapeCase c(cardScene(true), "shapes/card/vertices", everyVertexMovedBy(12, Vec3(0.08f, -0.05f, 0.1f)));
   c.along = vertexDirection(12, 6);
