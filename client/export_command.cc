@@ -1,11 +1,13 @@
 // invr export: a results folder written out as a Mitsuba 3 scene with the optimised values in
-// it (meshes as PLY, textures as EXR, transforms applied) and a job file over that scene.
+// it (meshes as PLY, textures as EXR, transforms applied) and a job file over that scene; or a
+// job (zoo name, job file) with its scene as described, the job's initial values kept.
 #include <filesystem>
 #include <iostream>
 #include <map>
 #include <memory>
 
 #include "client/commands.h"
+#include "client/common/job_argument.h"
 #include "core/error.h"
 #include "core/optim/results_export.h"
 #include "proto/wire/sha256.h"
@@ -15,6 +17,7 @@ namespace invr::cli {
 namespace {
 
 namespace fs = std::filesystem;
+namespace v1 = invr::v1;
 
 struct ExportArgs {
   std::string results;
@@ -75,7 +78,18 @@ void runExport(const ExportArgs& a) {
   AssetResolver assets;
   assets.baseDir = results;
   assets.byHash = [index](const std::string& h) { return index->find(h); };
-  const ResultsExport out = exportResults(results, xml, assets);
+  ResultsExport out;
+  if (fs::is_directory(results)) {
+    out = exportResults(results, xml, assets);
+  } else {  // a job: its scene as described
+    AssetResolver jobAssets;
+    v1::JobSpec job = jobFromArgument(a.results, jobAssets);
+    // The exported job sits beside the XML: its own asset paths (targets, initial meshes) follow it.
+    const fs::path dir = fs::absolute(xml).parent_path();
+    rebaseAssetPaths(job, fs::absolute(jobAssets.baseDir), dir);
+    jobAssets.baseDir = dir;
+    out = exportJob(job, xml, jobAssets);
+  }
   for (const auto& n : out.notes) std::cerr << "note: " << n << "\n";
   std::cout << "wrote " << fs::absolute(xml).lexically_normal().string() << " (" << out.scene.files.size() - 1
             << " meshes and images beside it) and " << fs::absolute(out.job).lexically_normal().string()
@@ -88,8 +102,11 @@ void addExportCommand(CLI::App& app, int& exitCode) {
   auto args = std::make_shared<ExportArgs>();
   auto* cmd = app.add_subcommand("export",
                                  "Write a results folder (run, fetch, optimize) as a Mitsuba 3 scene with the optimised values in it "
-                                 "(meshes/*.ply in world space, textures/*.exr) and a job file over it (docs/mitsuba-import.md#export)");
-  cmd->add_option("results", args->results, "results folder (holds job.json and parameters.json)")->required();
+                                 "(meshes/*.ply in world space, textures/*.exr) and a job file over it; or a job (zoo name, job file) "
+                                 "with its scene as described, the ground truth of a synthetic job (docs/mitsuba-import.md#export)");
+  cmd->add_option("results", args->results,
+                  "results folder (holds job.json and parameters.json), or a job: zoo scene name or job file (.json)")
+      ->required();
   cmd->add_option("-o,--output", args->out, "the scene file to write (.xml); the job goes beside it as .json")->capture_default_str();
   cmd->add_option("--assets", args->assets,
                   "DIR: a folder holding the job's uploaded meshes and textures (found by content hash; repeatable); the results "

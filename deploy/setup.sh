@@ -7,7 +7,8 @@
 # render and validate the Kubernetes manifests offline, with the validator's npm packages
 # installed here into deploy/k8s/validator/node_modules; libjs-chart.js is embedded in invr-server's
 # dashboard at build time, and the dashboard's browser test drives Debian's chromium headless
-# through the DevTools protocol with python3-websocket).
+# through the DevTools protocol with python3-websocket; python3-venv and libllvm19 let
+# deploy/peers.sh install Mitsuba 3 from PyPI and run Dr.Jit's LLVM backend).
 # Idempotent and non-interactive; run as root (or through sudo).
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
@@ -37,6 +38,7 @@ PACKAGES=(
   nodejs
   chromium python3-websocket
   linux-perf
+  python3-venv libllvm19
 )
 if [ "${1:-}" = "--build-only" ]; then PACKAGES=("${BUILD_PACKAGES[@]}"); fi
 

@@ -106,6 +106,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   addBenchSamplerCommand(*bench, exitCode);
   addBenchStepCommand(*bench, exitCode);
   addBenchScaleCommand(*bench, exitCode);
+  addBenchGradientVectorCommand(*bench, exitCode);
 }
 
 }  // namespace invr::cli

@@ -15,6 +15,7 @@ void addBenchVarianceCommand(CLI::App& bench, int& exitCode);
 void addBenchSamplerCommand(CLI::App& bench, int& exitCode);  // bench sampler: independent against sobol
 void addBenchStepCommand(CLI::App& bench, int& exitCode);     // bench step: a gradient step against its rays' Embree time
 void addBenchScaleCommand(CLI::App& bench, int& exitCode);    // bench scale: step time and memory against problem size
+void addBenchGradientVectorCommand(CLI::App& bench, int& exitCode);  // bench gradient-vector: a job's gradient with standard errors
 void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
 
 }  // namespace invr::cli

@@ -18,9 +18,11 @@ namespace {
 bool heldBySampling(ParamKind k) { return k == ParamKind::LightLogits || k == ParamKind::PixelLightLogits || k == ParamKind::Survival; }
 
 // The exported job: the same optimisation over the exported scene.
+// resultsDir empty: the job as given (its scene as described), initial values and targets kept.
 v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vector<float>& theta, const fs::path& resultsDir,
                         const fs::path& xml, const std::vector<std::pair<std::string, std::string>>& renamed,
                         std::vector<std::string>& notes) {
+  const bool asGiven = resultsDir.empty();
   v1::JobSpec out = job;
   out.mutable_mitsuba()->set_path(xml.filename().string());  // replaces the zoo name or inline scene
   if (!job.has_optimization()) return out;
@@ -39,12 +41,21 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
     for (const auto& [from, to] : renamed)
       if (name.rfind(from, 0) == 0) name = to + name.substr(from.size());
     ps.set_name(name);
+    if (asGiven) {  // the scene holds the truth: the job starts where it did
+      *o.add_parameters() = std::move(ps);
+      continue;
+    }
     ps.clear_initial();
     ps.clear_initial_values();
     ps.clear_initial_mesh();
     if (heldBySampling(s.kind))  // not part of the scene: the job carries them
       for (uint32_t k = 0; k < s.size; ++k) ps.add_initial_values(double(theta[s.offset + k]));
     *o.add_parameters() = std::move(ps);
+  }
+  if (asGiven) {
+    if (job.optimization().targets_size() > 0)
+      notes.push_back("the job's target images keep their paths: copy them beside the exported job, or give them again as optimization.targets");
+    return out;
   }
   if (job.optimization().targets_size() > 0) {
     o.clear_targets();
@@ -75,21 +86,10 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
 
 }  // namespace
 
-ResultsExport exportResults(const fs::path& resultsDir, const fs::path& xml, const AssetResolver& assets) {
-  if (!fs::is_directory(resultsDir)) throw InputError("'" + resultsDir.string() + "': not a results folder");
-  const fs::path jobFile = resultsDir / "job.json";
-  if (!fs::exists(jobFile))
-    throw InputError("'" + resultsDir.string() + "' has no job.json (results of invr run, fetch and optimize have it since 0.9.0)");
-  const v1::JobSpec job = loadJobFile(jobFile);
-  if (job.has_mitsuba()) throw InputError("'" + jobFile.string() + "': its scene is still a Mitsuba file reference; expected the imported scene");
-  // The scene is what is exported: the targets are not needed to build it.
-  v1::JobSpec buildable = job;
-  buildable.mutable_optimization()->clear_targets();
-  buildable.mutable_optimization()->clear_target_masks();
-  Problem p = buildProblem(buildable, assets);  // with a BVH: writing shape motion refits it
-  std::vector<float> theta = p.initial;
-  readParameters(resultsDir, p.params, theta);
-  p.params.write(theta, *p.scene);
+namespace {
+
+ResultsExport writeExport(const v1::JobSpec& job, Problem& p, const std::vector<float>& theta, const fs::path& resultsDir,
+                          const fs::path& xml) {
   MitsubaExportOptions mo;
   mo.spp = job.render().spp() > 0 ? job.render().spp() : 16;
   mo.maxDepth = std::max(1, p.gradient.maxDepth);
@@ -105,6 +105,38 @@ ResultsExport exportResults(const fs::path& resultsDir, const fs::path& xml, con
   f << jobToJson(exported);
   if (!f.flush()) throw InputError("cannot write '" + out.job.string() + "'");
   return out;
+}
+
+}  // namespace
+
+ResultsExport exportResults(const fs::path& resultsDir, const fs::path& xml, const AssetResolver& assets) {
+  if (!fs::is_directory(resultsDir)) throw InputError("'" + resultsDir.string() + "': not a results folder");
+  const fs::path jobFile = resultsDir / "job.json";
+  if (!fs::exists(jobFile))
+    throw InputError("'" + resultsDir.string() + "' has no job.json (results of invr run, fetch and optimize have it since 0.9.0)");
+  const v1::JobSpec job = loadJobFile(jobFile);
+  if (job.has_mitsuba()) throw InputError("'" + jobFile.string() + "': its scene is still a Mitsuba file reference; expected the imported scene");
+  // The scene is what is exported: the targets are not needed to build it.
+  v1::JobSpec buildable = job;
+  buildable.mutable_optimization()->clear_targets();
+  buildable.mutable_optimization()->clear_target_masks();
+  Problem p = buildProblem(buildable, assets);  // with a BVH: writing shape motion refits it
+  std::vector<float> theta = p.initial;
+  readParameters(resultsDir, p.params, theta);
+  p.params.write(theta, *p.scene);
+  return writeExport(job, p, theta, resultsDir, xml);
+}
+
+ResultsExport exportJob(const v1::JobSpec& job, const fs::path& xml, const AssetResolver& assets) {
+  if (job.has_mitsuba()) throw InputError("the job's scene is still a Mitsuba file reference; expected the imported scene");
+  v1::JobSpec buildable = job;
+  buildable.mutable_optimization()->clear_targets();
+  buildable.mutable_optimization()->clear_target_masks();
+  Problem p = buildProblem(buildable, assets);
+  p.params.write(p.truth, *p.scene);
+  for (const auto& t : p.truthMeshes)  // a shape started from another mesh: its truth is exported
+    if (t.replaced) p.scene->replaceMesh(t.mesh, t.geometry);
+  return writeExport(job, p, p.truth, {}, xml);
 }
 
 }  // namespace invr

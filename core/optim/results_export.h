@@ -25,4 +25,10 @@ struct ResultsExport {
 // as its target images when all views have one. Errors name the file at fault.
 ResultsExport exportResults(const std::filesystem::path& resultsDir, const std::filesystem::path& xml, const AssetResolver& assets);
 
+// A job's scene as described (for a synthetic job, its ground truth) exported to `xml`, and the
+// job over it with its parameters' initial values and its targets as given (a synthetic job
+// renders its targets from the exported scene). `job` has its scene inline (a zoo scene or an
+// imported one), its asset paths relative to assets.baseDir.
+ResultsExport exportJob(const invr::v1::JobSpec& job, const std::filesystem::path& xml, const AssetResolver& assets);
+
 }  // namespace invr

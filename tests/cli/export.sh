@@ -64,4 +64,26 @@ grep -q "\-\-assets" export2.err || fail "the error does not say --assets: $(cat
 "$BIN/invr" render --scene exp2/scene.xml --spp 4 -o c.exr > /dev/null 2>&1 || fail "render of the exported Mitsuba scene"
 "$BIN/invr" plan exp2/scene.json > plan2.log 2>&1 || fail "the exported Mitsuba job does not load: $(cat plan2.log)"
 grep -q '"lights/light/intensity"' exp2/scene.json || fail "the job does not name the light in the exported scene's names"
+# A job exported as it is described (issue 58: the scenes deploy/peers.sh gives Mitsuba 3): the
+# scene is the ground truth, the job keeps its starting values and renders its targets.
+"$BIN/invr" export cornell -o zoo/scene.xml > zoo.log 2>&1 || fail "export of a zoo job: $(cat zoo.log)"
+grep -q '"initial": 0.5' zoo/scene.json || fail "the exported zoo job lost its initial values: $(cat zoo/scene.json)"
+if grep -q '"targets"' zoo/scene.json; then fail "the exported zoo job names targets"; fi
+"$BIN/invr" plan zoo/scene.json > zplan.log 2>&1 || fail "the exported zoo job does not load: $(cat zplan.log)"
+for s in 1 2; do
+  "$BIN/invr" render --scene zoo/scene.xml --spp 16 --seed "$s" -o "z$s.exr" > /dev/null 2>&1 || fail "render of the exported zoo scene"
+done
+"$BIN/invr" render --scene cornell --spp 16 --seed 3 -o zc.exr > /dev/null 2>&1 || fail "render of the zoo scene"
+$PY - zc.exr z1.exr z2.exr <<'PYEOF' || fail "the exported zoo scene does not render like the zoo scene"
+import sys, numpy as np, OpenImageIO as oiio
+a, b1, b2 = (oiio.ImageBuf(p).get_pixels(oiio.FLOAT)[..., :3] for p in sys.argv[1:])
+def blocks(x):
+    h, w = x.shape[0] // 8 * 8, x.shape[1] // 8 * 8
+    return x[:h, :w].reshape(h // 8, 8, w // 8, 8, 3).mean(axis=(1, 3))
+a, b1, b2 = blocks(a), blocks(b1), blocks(b2)
+err, noise = np.mean((a - b1) ** 2), np.mean((b1 - b2) ** 2)
+print(f"zoo vs exported zoo: {err:.3e}; exported vs itself: {noise:.3e}; ratio {err / noise:.2f}")
+assert err < 2.0 * noise, "difference beyond the noise"
+PYEOF
+if "$BIN/invr" export no_such_scene -o bad/scene.xml > bad.log 2>&1; then fail "export of an unknown job succeeded"; fi
 echo "export: ok"
