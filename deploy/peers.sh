@@ -37,7 +37,7 @@ fail() { echo "peers: cannot install the peer: $*" >&2; exit 1; }
 # Dr.Jit 1.5's LLVM backend emits llvm.minimum/maximum, which LLVM 15's x86 backend cannot
 # select ("LLVM ERROR: Cannot select: fminimum", measured on Debian's libllvm15); Debian 12's
 # libllvm19 compiles them.
-LIBLLVM=/usr/lib/x86_64-linux-gnu/libLLVM-19.so.1
+LIBLLVM=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1  # Debian 12 libllvm19 (libLLVM-19.so links to it)
 if [ ! -e "$LIBLLVM" ]; then
   if [ "$(id -u)" -eq 0 ]; then
     echo "peers: installing Debian's libllvm19 (Dr.Jit's LLVM backend)" >&2
@@ -67,7 +67,7 @@ INVR="$BUILD/bin/invr"
 [ -x "$INVR" ] || { echo "peers: $INVR not found: build invr first (bash deploy/build.sh) or set INVR_BUILD_DIR" >&2; exit 1; }
 ARGS=(--invr "$(readlink -f "$INVR")" --work "$BUILD/peers/work")
 [ -n "$SCENES" ] && ARGS+=(--scenes "$SCENES")
-[ "$QUICK" = 1 ] && ARGS+=(--evaluations 4 --mitsuba-evaluations 4 --fd-evaluations 2 --forward-seeds 4 --time-to-error-steps 0)
+[ "$QUICK" = 1 ] && ARGS+=(--evaluations 4 --mitsuba-evaluations 4 --fd-evaluations 2 --forward-seeds 4 --mitsuba-fd-evaluations 2 --time-to-error-steps 0)
 OUT="$BUILD/peers/report.json"
 "$VENV/bin/python" deploy/peers/compare.py "${ARGS[@]}" "${EXTRA[@]}" --out "$OUT.tmp" >&2
 mv "$OUT.tmp" "$OUT"

@@ -121,7 +121,14 @@ void runGradientVector(const GradientVectorArgs& a) {
   rep.number("learning_rate_half_life", p.schedule.halfLifeSteps);
   Json params = Json::array();
   for (const auto& s : p.params.slots())
-    params.push_back({{"name", s.name}, {"offset", s.offset}, {"size", s.size}, {"width", s.width}, {"height", s.height}, {"channels", s.channels}, {"learning_rate", s.learningRate}, {"lower", s.lower},
+    params.push_back({{"name", s.name},
+                      {"offset", s.offset},
+                      {"size", s.size},
+                      {"width", s.width},
+                      {"height", s.height},
+                      {"channels", s.channels},
+                      {"learning_rate", s.learningRate},
+                      {"lower", s.lower},
                       {"upper", s.upper}});
   rep.value("parameters", params, std::to_string(p.params.slots().size()) + " parameters, " + std::to_string(p.params.size()) + " values");
   rep.value("theta", Json(std::vector<double>(theta.begin(), theta.end())), "(the job's starting values)");
