@@ -225,7 +225,7 @@ void runGradientVector(const GradientVectorArgs& a) {
       ses.push_back(m.standardError()[0]);
     }
     p.params.write(theta, *p.scene);
-    Json fd = {{"mode", perComponent ? "components" : "direction"}, {"evaluations", a.fdEvaluations}, {"spp", a.fdSpp},
+    Json fd = {{"mode", perComponent ? "components" : "direction"}, {"evaluations", a.fdEvaluations}, {"spp", a.fdSpp}, {"scale", a.fdScale},
                {"values", values}, {"se", ses}};
     if (!perComponent) fd["direction"] = directions[0];
     rep.value("fd", fd, std::string("finite differences (") + (perComponent ? "per component" : "along one direction") + ")");

@@ -161,6 +161,16 @@ void runBenchStep(const StepArgs& a) {
     sum += s;
   }
   rep.number("phase_seconds_other", std::max(0.0, fastest.seconds - sum), "s");
+  // Shape jobs: what each boundary term drew from (edges summed over views) and counted, e.g. the
+  // primary term's terminator_edges and hidden_edges_skipped (creases a closed mesh turns away
+  // from the eye, left out before sampling).
+  std::map<std::string, v1::BoundaryTermStats> terms(st.boundary().begin(), st.boundary().end());
+  for (const auto& [name, term] : terms) {
+    rep.number("boundary_" + name + "_candidate_edges", double(term.candidate_edges()));
+    rep.number("boundary_" + name + "_samples", double(term.samples()));
+    std::map<std::string, uint64_t> counters(term.counters().begin(), term.counters().end());
+    for (const auto& [counter, value] : counters) rep.number("boundary_" + name + "_" + counter, double(value));
+  }
   if (a.replay) rep.number("logged_step_seconds", logged.seconds, "s (with the ray log: not the figure above)");
   rep.print(a.json);
 }

@@ -34,7 +34,10 @@ namespace invr {
 // What a job sets of the boundary terms (optimization.boundary): used when shape parameters are
 // optimised. Defaults here are the job's defaults.
 struct BoundaryOptions {
-  bool primary = true;    // silhouette and crease edges of moving meshes seen by the camera
+  bool primary = true;    // silhouette, crease and terminator edges of moving meshes seen by the camera
+  // The primary term's shadow-terminator candidates on smooth meshes (PrimaryBoundary::
+  // terminatorJumpBound). Always on in jobs; tests turn it off to measure the term's share.
+  bool terminators = true;
   bool secondary = true;  // shadow borders of point, spot, area and environment lights
   int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
   int lightPoints = 16;   // light points (area lights) and directions (environments) per pass whose shadow borders are sampled

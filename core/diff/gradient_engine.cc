@@ -62,11 +62,9 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
   if (params.hasShapeParameters())
     for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
       topology_.push_back(EdgeTopology::build(scene.meshes[m]));
-      // Deforming meshes: any two faces may turn apart. (Not for moving smooth meshes, whose edges
-      // where faces turn from a light do cut the light off while the interpolated normal still
-      // faces it: on the smooth sphere of SmoothSphereMovingSideways, sampling every edge as a
-      // crease added more O(eps) bias, +1.6 %, than that jump's share, -0.3 % +- 0.6 % without.)
-      // Smooth meshes that deform recompute welded vertex normals: no edge is a crease.
+      // Deforming meshes: any two faces may turn apart. Smooth meshes that deform recompute welded
+      // vertex normals: no edge is a crease; their edges where a light's facing flips (the shadow
+      // terminator) are the primary term's own candidates, found per step.
       if (params.deforms(m)) {
         if (scene.meshes[m].normals.empty()) topology_.back().markEveryEdgeACrease();
         else topology_.back().markNoEdgeACrease();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "core/diff/film_projection.h"
 #include "core/diff/gradient_options.h"
@@ -71,8 +72,135 @@ float sideOffset(const Scene& scene, const Camera& cam, const FilmEdge& e, Vec2 
 
 float PrimaryBoundary::creaseJumpBound(Vec3 n0, Vec3 n1) { return std::clamp(length(n0 - n1), kMinCreaseWeight, 1.f); }
 
-PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology)
-    : scene_(scene), params_(params), topology_(topology) {}
+namespace {
+
+// The largest cosine between the interpolated normal and the direction to light point q at the
+// edge's ends and middle (0 if none faces it): the lit side's shading cosine along the edge, which
+// scales its jump. Only a weight: it may be 0 where the edge's middle still faces q, so callers
+// keep a floor.
+float vertexCosineTowards(const TriangleMesh& mesh, const MeshEdge& e, Vec3 q) {
+  const Vec3 p0 = mesh.positions[e.v0], p1 = mesh.positions[e.v1], n0 = mesh.normals[e.v0], n1 = mesh.normals[e.v1];
+  float c = 0.f;
+  for (const auto& [p, n] : {std::pair{p0, n0}, std::pair{p1, n1}, std::pair{(p0 + p1) * 0.5f, n0 + n1}}) {
+    const float len = length(q - p) * length(n);
+    if (len > 0.f) c = std::max(c, dot(n, q - p) / len);
+  }
+  return c;
+}
+
+// Points whose facing bounds an area light's: the facing of a face, sign(ng . (q - p)), is linear
+// in q, so over the emitter's convex hull it takes the signs it takes at the hull's corners.
+std::vector<Vec3> emitterCorners(const TriangleMesh& emitter) {
+  if (emitter.positions.size() <= 8) return emitter.positions;
+  Vec3 lo = emitter.positions[0], hi = lo;
+  for (const Vec3& p : emitter.positions) {
+    lo = Vec3(std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z));
+    hi = Vec3(std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z));
+  }
+  std::vector<Vec3> c;
+  for (int k = 0; k < 8; ++k) c.push_back(Vec3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z));
+  return c;
+}
+
+// Per light of the scene: an area light's emitterCorners (empty for other lights).
+std::vector<std::vector<Vec3>> lightCorners(const Scene& scene) {
+  std::vector<std::vector<Vec3>> out(scene.lights.size());
+  for (size_t k = 0; k < scene.lights.size(); ++k)
+    if (scene.lights[k].kind == LightKind::Area) out[k] = emitterCorners(scene.meshes[scene.lights[k].mesh]);
+  return out;
+}
+
+float terminatorBound(const Scene& scene, const std::vector<std::vector<Vec3>>& corners, uint32_t m, const MeshEdge& e,
+                      const std::vector<Vec3>& normals) {
+  constexpr float kMin = PrimaryBoundary::kMinCreaseWeight;
+  const TriangleMesh& mesh = scene.meshes[m];
+  if (e.boundary() || mesh.normals.empty()) return 0.f;
+  const Vec3 n0 = normals[e.face0], n1 = normals[e.face1], p = mesh.positions[e.v0];  // p lies on both faces
+  float bound = 0.f;
+  for (size_t k = 0; k < scene.lights.size(); ++k) {
+    const Light& l = scene.lights[k];
+    switch (l.kind) {
+      case LightKind::Point:
+      case LightKind::Spot:
+        if ((dot(n0, l.position - p) > 0.f) != (dot(n1, l.position - p) > 0.f))
+          bound = std::max({bound, kMin, vertexCosineTowards(mesh, e, l.position)});
+        break;
+      case LightKind::Area: {
+        bool all0 = true, none0 = true, all1 = true, none1 = true;
+        float c = 0.f;
+        for (const Vec3& q : corners[k]) {
+          const bool f0 = dot(n0, q - p) > 0.f, f1 = dot(n1, q - p) > 0.f;
+          all0 = all0 && f0, none0 = none0 && !f0, all1 = all1 && f1, none1 = none1 && !f1;
+          c = std::max(c, vertexCosineTowards(mesh, e, q));
+        }
+        if (!((all0 && all1) || (none0 && none1))) bound = std::max({bound, kMin, c});
+        break;
+      }
+      case LightKind::Environment:
+      case LightKind::ConstantEnvironment:
+        if (const float turn = length(n0 - n1); turn > 0.f) bound = std::max({bound, kMin, turn});
+        break;
+    }
+  }
+  return std::min(bound, 1.f);
+}
+
+// +1 if the faces of a closed, consistently wound mesh point out of it, -1 if they point in (the
+// sign of its signed volume).
+float outwardSign(const TriangleMesh& mesh) {
+  double v = 0.0;
+  for (size_t f = 0; f < mesh.triangleCount(); ++f) {
+    const Vec3 a = mesh.positions[mesh.indices[3 * f]], b = mesh.positions[mesh.indices[3 * f + 1]], c = mesh.positions[mesh.indices[3 * f + 2]];
+    v += double(dot(a, cross(b, c)));
+  }
+  return v < 0.0 ? -1.f : 1.f;
+}
+
+}  // namespace
+
+float PrimaryBoundary::terminatorJumpBound(const Scene& scene, uint32_t m, const MeshEdge& e, const std::vector<Vec3>& normals) {
+  return terminatorBound(scene, lightCorners(scene), m, e, normals);
+}
+
+std::vector<PrimaryBoundary::Candidate> PrimaryBoundary::candidates(int view, size_t* hiddenSkipped) const {
+  const Camera& cam = scene_.cameras[size_t(view)];
+  std::vector<Candidate> out;
+  size_t hidden = 0;
+  const std::vector<std::vector<Vec3>> corners = lightCorners(scene_);
+  for (uint32_t m : params_.movingMeshes()) {
+    const TriangleMesh& mesh = scene_.meshes[m];
+    const std::vector<Vec3>& normals = mesh.faceNormals;
+    const std::vector<MeshEdge>& edges = topology_[m].edges();
+    // A closed mesh seen from outside: a ray from the eye enters it before anything of it turned
+    // away (outward normal facing away from the eye) can be hit, so an edge between two such
+    // faces is never seen, and its samples would be spent on the visibility test that skips them.
+    const bool seenFromOutside = topology_[m].closedOriented() && std::abs(meshWindingNumber(mesh, cam.eye)) < 0.5;
+    const float outward = seenFromOutside ? outwardSign(mesh) : 0.f;
+    auto towardsEye = [&](const MeshEdge& e, uint32_t f) { return outward * dot(normals[f], cam.eye - mesh.positions[e.v0]) > 0.f; };
+    for (size_t i = 0; i < edges.size(); ++i) {
+      const MeshEdge& e = edges[i];
+      if (EdgeTopology::silhouetteFrom(e, mesh, normals, cam.eye)) {
+        out.push_back({m, i, EdgeKind::Silhouette, 1.f});
+        continue;
+      }
+      if (seenFromOutside && !towardsEye(e, e.face0) && !towardsEye(e, e.face1)) {
+        hidden += e.crease || (terminators_ && terminatorBound(scene_, corners, m, e, normals) > 0.f);
+        continue;
+      }
+      if (e.crease) {
+        // Smooth meshes' creases (split normals) may jump by anything.
+        out.push_back({m, i, EdgeKind::Crease, mesh.normals.empty() ? creaseJumpBound(normals[e.face0], normals[e.face1]) : 1.f});
+      } else if (const float bound = terminators_ ? terminatorBound(scene_, corners, m, e, normals) : 0.f; bound > 0.f) {
+        out.push_back({m, i, EdgeKind::Terminator, bound});
+      }
+    }
+  }
+  if (hiddenSkipped) *hiddenSkipped = hidden;
+  return out;
+}
+
+PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, bool terminators)
+    : scene_(scene), params_(params), topology_(topology), terminators_(terminators) {}
 
 BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples;
@@ -84,47 +212,45 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   const int W = scene_.width, H = scene_.height;
   const float zNear = 1e-4f * scene_.radius;
   BoundaryPassStats st;
-  // Candidates in the current pose: silhouettes from the eye and creases, clipped.
+  // Candidates in the current pose: silhouettes from the eye, creases and terminators, clipped.
   std::vector<FilmEdge> edges;
   std::vector<float> lengths, weights, jumpBounds;
-  for (uint32_t m : params_.movingMeshes()) {
+  size_t hidden = 0;
+  for (const Candidate& cand : candidates(view, &hidden)) {
+    const uint32_t m = cand.mesh;
     const TriangleMesh& mesh = scene_.meshes[m];
-    std::vector<Vec3> normals(mesh.triangleCount());
-    for (uint32_t f = 0; f < normals.size(); ++f) normals[f] = scene_.faceNormal(m, f);
-    for (const MeshEdge& e : topology_[m].edges()) {
-      if (!e.crease && !EdgeTopology::silhouetteFrom(e, mesh, normals, cam.eye)) continue;
-      FilmEdge fe;
-      fe.mesh = m;
-      fe.face0 = e.face0;
-      fe.face1 = e.nonManifold ? MeshEdge::kNone : e.face1;
-      fe.silhouette = EdgeTopology::silhouetteFrom(e, mesh, normals, cam.eye);
-      fe.a = mesh.positions[e.v0];
-      fe.b = mesh.positions[e.v1];
-      fe.v0 = e.v0;
-      fe.v1 = e.v1;
-      fe.za = dot(fe.a - cam.eye, cam.forward);
-      fe.zb = dot(fe.b - cam.eye, cam.forward);
-      if (fe.za < zNear && fe.zb < zNear) continue;
-      if (fe.za < zNear || fe.zb < zNear) {  // clip at the near plane
-        float t = (zNear - fe.za) / (fe.zb - fe.za);
-        Vec3 c = fe.a + (fe.b - fe.a) * t;
-        if (fe.za < zNear) { fe.a = c; fe.za = zNear; }
-        else { fe.b = c; fe.zb = zNear; }
-      }
-      fe.fa = filmPosition(cam, fe.a, W, H);
-      fe.fb = filmPosition(cam, fe.b, W, H);
-      if (!clipToFilm(fe.fa, fe.fb, float(W), float(H), fe.s0, fe.s1)) continue;
-      const Vec2 span = fe.fb - fe.fa;
-      fe.length = std::sqrt(span.x * span.x + span.y * span.y) * (fe.s1 - fe.s0);
-      if (!(fe.length > 0.f)) continue;
-      const bool flatCrease = !fe.silhouette && fe.face1 != MeshEdge::kNone && mesh.normals.empty();
-      const float bound = flatCrease ? creaseJumpBound(normals[fe.face0], normals[fe.face1]) : 1.f;
-      edges.push_back(fe);
-      lengths.push_back(fe.length);
-      weights.push_back(fe.length * bound);
-      jumpBounds.push_back(bound);
+    const MeshEdge& e = topology_[m].edges()[cand.edge];
+    FilmEdge fe;
+    fe.mesh = m;
+    fe.face0 = e.face0;
+    fe.face1 = e.nonManifold ? MeshEdge::kNone : e.face1;
+    fe.silhouette = cand.kind == EdgeKind::Silhouette;
+    fe.a = mesh.positions[e.v0];
+    fe.b = mesh.positions[e.v1];
+    fe.v0 = e.v0;
+    fe.v1 = e.v1;
+    fe.za = dot(fe.a - cam.eye, cam.forward);
+    fe.zb = dot(fe.b - cam.eye, cam.forward);
+    if (fe.za < zNear && fe.zb < zNear) continue;
+    if (fe.za < zNear || fe.zb < zNear) {  // clip at the near plane
+      float t = (zNear - fe.za) / (fe.zb - fe.za);
+      Vec3 c = fe.a + (fe.b - fe.a) * t;
+      if (fe.za < zNear) { fe.a = c; fe.za = zNear; }
+      else { fe.b = c; fe.zb = zNear; }
     }
+    fe.fa = filmPosition(cam, fe.a, W, H);
+    fe.fb = filmPosition(cam, fe.b, W, H);
+    if (!clipToFilm(fe.fa, fe.fb, float(W), float(H), fe.s0, fe.s1)) continue;
+    const Vec2 span = fe.fb - fe.fa;
+    fe.length = std::sqrt(span.x * span.x + span.y * span.y) * (fe.s1 - fe.s0);
+    if (!(fe.length > 0.f)) continue;
+    terminatorEdges_ += cand.kind == EdgeKind::Terminator;
+    edges.push_back(fe);
+    lengths.push_back(fe.length);
+    weights.push_back(fe.length * cand.jumpBound);
+    jumpBounds.push_back(cand.jumpBound);
   }
+  hiddenSkipped_ += hidden;
   st.candidateEdges = edges.size();
   for (float l : lengths) st.filmLength += double(l);
   if (edges.empty() || samples <= 0) return st;
@@ -169,6 +295,11 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   return st;
 }
 
+void PrimaryBoundary::endStep(RayStats&, std::vector<std::pair<std::string, uint64_t>>& counters) {
+  counters.emplace_back("terminator_edges", terminatorEdges_);
+  counters.emplace_back("hidden_edges_skipped", hiddenSkipped_);
+}
+
 namespace {
 
 const RegisterBoundaryTerm kPrimary({
@@ -176,12 +307,15 @@ const RegisterBoundaryTerm kPrimary({
     .order = 10,
     .stream = kPrimaryBoundaryStream,
     .applies = [](const Scene&, const GradientOptions& o) { return o.boundary.primary; },
-    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> { return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology); },
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> { return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology, s.options.boundary.terminators);
+    },
     .describe =
         [](const BoundaryPlanInput& in) {
           return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
-                 " edge samples per view and step on silhouette and crease edges of moving meshes, by clipped film length times a "
-                 "bound on the jump (creases between flat faces: |n0 - n1|), both sides with the same random numbers, hidden edge "
+                 " edge samples per view and step on silhouette, crease and (smooth meshes) shadow-terminator edges of moving "
+                 "meshes, by clipped film length times a bound on the jump (creases between flat faces: |n0 - n1|; terminators: the "
+                 "lit side's shading cosine), creases and terminators that a closed mesh seen from outside turns away from the eye "
+                 "skipped (counted in the stats' hidden_edges_skipped), both sides with the same random numbers, hidden edge "
                  "points skipped; both sides traced with the interior estimator; box pixel filter, so no pixel-boundary term";
         },
     .memoryBytes = {},

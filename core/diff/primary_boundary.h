@@ -6,7 +6,8 @@
 // border does not move with theta, so there is no separate pixel-boundary term (the issue's
 // "pixel filter handled" option; we do not use the antithetic variant of §6).
 //
-// Candidate edges are the silhouette (from the eye) and crease edges of moving meshes, clipped to
+// Candidate edges are the silhouette (from the eye), crease and, on smooth meshes, shadow
+// terminator edges (terminatorJumpBound) of moving meshes, clipped to
 // the near plane and the film; a sample picks an edge proportionally to its clipped film length
 // times a bound on its radiance jump (creaseJumpBound), and a point uniformly along that length,
 // then traces one camera sample on
@@ -30,7 +31,7 @@ inline constexpr StreamId kPrimaryBoundaryStream{12};
 class PrimaryBoundary final : public BoundaryTerm {
  public:
   // topology[m] for every mesh the registry moves (others may be empty).
-  PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology);
+  PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, bool terminators = true);
 
   // Adds adjoint-weighted edge samples for one view into its gradient. `adjoint` is dLoss/dI per
   // pixel and channel (every pixel traced); both sides are traced with the view's estimator.
@@ -46,6 +47,37 @@ class PrimaryBoundary final : public BoundaryTerm {
   static float creaseJumpBound(Vec3 n0, Vec3 n1);
   static constexpr float kMinCreaseWeight = 1e-3f;
 
+  // A smooth mesh's shadow terminator: direct light is zero on a face turned away from the light
+  // before any shadow ray (bsdfTowards), while the interpolated normal of its lit neighbour still
+  // faces the light, so an edge between a face that a light reaches and one it cannot is a
+  // radiance jump that moves with the mesh (Issue 59). For an edge with two faces of mesh m (face
+  // normals `faceNormals`, current pose): a bound on that jump per unit radiance, > 0 if some light
+  // may light one face and not the other, else 0. Point and spot lights: exactly the edges whose
+  // faces differ in the sign of ng . (l - p). Area lights: conservatively, unless both faces see
+  // every corner of the emitter (its vertices, or its bounding box's corners beyond 8 vertices) or
+  // neither sees any. Environments: every edge whose faces are not coplanar (each face's
+  // hemisphere cuts the sky). The bound is the lit side's shading cosine towards the light at the
+  // edge's ends and middle (environments: creaseJumpBound of the face normals), in
+  // [kMinCreaseWeight, 1]; it only weights the sampling, so a loose one costs variance, not bias.
+  static float terminatorJumpBound(const Scene& scene, uint32_t mesh, const MeshEdge& e, const std::vector<Vec3>& faceNormals);
+
+  // Why an edge is a candidate, and its weight per unit film length (before clipping and the
+  // visibility of its points). Tests read the set; run() samples it.
+  enum class EdgeKind : uint8_t { Silhouette, Crease, Terminator };
+  struct Candidate {
+    uint32_t mesh = 0;
+    size_t edge = 0;  // index into topology[mesh].edges()
+    EdgeKind kind = EdgeKind::Silhouette;
+    float jumpBound = 1.f;
+  };
+  // Creases and terminators whose two faces a closed, consistently wound mesh seen from outside
+  // turns away from the eye are left out (never seen: exact), and counted in *hiddenSkipped.
+  std::vector<Candidate> candidates(int view, size_t* hiddenSkipped = nullptr) const;
+
+  // Counters of the step (GradientStats.boundary["primary"].counters): terminator_edges (clipped
+  // candidates, summed over views) and hidden_edges_skipped.
+  void endStep(RayStats& rays, std::vector<std::pair<std::string, uint64_t>>& counters) override;
+
   // How far off the edge, in pixels, the two sides are sampled.
   static constexpr float kSideOffsetPixels = 1e-3f;
   // The smallest it shrinks to where a face next to the edge is thinner (film positions of the
@@ -59,6 +91,8 @@ class PrimaryBoundary final : public BoundaryTerm {
   const Scene& scene_;
   const ParameterRegistry& params_;
   const std::vector<EdgeTopology>& topology_;
+  bool terminators_;
+  uint64_t terminatorEdges_ = 0, hiddenSkipped_ = 0;
 };
 
 }  // namespace invr

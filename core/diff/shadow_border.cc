@@ -91,8 +91,14 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   bp.n = Vec2(-dxdt.y / bp.speed, dxdt.x / bp.speed);
   // The sides must straddle the border the renderer draws, which its shadow rays' origin offset
   // (offsetOrigin) displaces by a few offsets: step that far, at least, on the film. (At 1e-3 px
-  // both sides fell on the same side of the drawn border and the estimate was 0.)
-  const float offsetWorld = 8.f * offsetAt(y);
+  // both sides fell on the same side of the drawn border and the estimate was 0.) The offset
+  // lifts a shadow ray's start off the receiver along its normal, which moves the drawn border
+  // along the receiver by the offset times cot(elevation of the light over the receiver's
+  // plane): at a light 4 degrees above the floor, 14 offsets, and sides 8 offsets off the border
+  // both fell on one side of it (the estimate biased towards zero).
+  const float sinElevation = std::abs(bp.denom) / length(bp.toE);
+  const float cotElevation = std::sqrt(std::max(0.f, 1.f - sinElevation * sinElevation)) / sinElevation;
+  const float offsetWorld = (8.f + cotElevation) * offsetAt(y);
   bp.eps = std::max(PrimaryBoundary::kSideOffsetPixels, offsetWorld * std::max(length(bp.jx), length(bp.jy)));
   return true;
 }

@@ -73,6 +73,7 @@ EdgeTopology EdgeTopology::build(const TriangleMesh& mesh, float weldTolerance) 
   // have no edges.
   struct Pending {
     uint32_t v0, v1, face0, face1 = MeshEdge::kNone, faces = 1;
+    bool sameDirection = false;  // a second face runs along the edge as the first does (winding flips)
   };
   std::unordered_map<uint64_t, Pending> byKey;
   std::vector<uint64_t> order;  // first-seen order: deterministic edge indices
@@ -90,6 +91,7 @@ EdgeTopology EdgeTopology::build(const TriangleMesh& mesh, float weldTolerance) 
       } else {
         if (it->second.faces == 1) it->second.face1 = f;
         ++it->second.faces;
+        if (t.weld_[it->second.v0] == wa) it->second.sameDirection = true;
       }
     }
   }
@@ -112,8 +114,10 @@ EdgeTopology EdgeTopology::build(const TriangleMesh& mesh, float weldTolerance) 
     t.boundary_ += e.boundary();
     t.creases_ += e.crease;
     t.nonManifold_ += e.nonManifold;
+    t.closedOriented_ = t.closedOriented_ && !e.boundary() && !p.sameDirection;
     t.edges_.push_back(e);
   }
+  t.closedOriented_ = t.closedOriented_ && !t.edges_.empty();
   return t;
 }
 

@@ -44,6 +44,10 @@ class EdgeTopology {
   size_t creaseEdges() const { return creases_; }
   size_t nonManifoldEdges() const { return nonManifold_; }
   size_t weldedVertices() const { return weldedCount_; }
+  // Closed (every edge has exactly two faces) and consistently wound (the two faces run along each
+  // edge in opposite directions): a surface with an inside, whose outside every face's normal
+  // points to, or every face's normal points away from (meshWindingNumber tells which).
+  bool closedOriented() const { return closedOriented_; }
   // The welded vertex of each mesh vertex.
   uint32_t welded(uint32_t vertex) const { return weld_[vertex]; }
 
@@ -58,6 +62,7 @@ class EdgeTopology {
   std::vector<MeshEdge> edges_;
   std::vector<uint32_t> weld_;
   size_t boundary_ = 0, creases_ = 0, nonManifold_ = 0, weldedCount_ = 0;
+  bool closedOriented_ = true;
 };
 
 }  // namespace invr

@@ -459,4 +459,25 @@ size_t validateMesh(TriangleMesh& mesh, const std::string& what) {
   return removed;
 }
 
+double meshWindingNumber(const TriangleMesh& mesh, Vec3 p) {
+  // Van Oosterom and Strackee: the solid angle of triangle (a, b, c) seen from the origin is
+  // 2 atan2(a . (b x c), |a||b||c| + (a . b)|c| + (a . c)|b| + (b . c)|a|).
+  double sum = 0.0;
+  for (size_t f = 0; f < mesh.triangleCount(); ++f) {
+    double v[3][3];
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 q = mesh.positions[mesh.indices[3 * f + size_t(k)]] - p;
+      v[k][0] = q.x, v[k][1] = q.y, v[k][2] = q.z;
+    }
+    auto dotd = [](const double* x, const double* y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; };
+    const double* a = v[0];
+    const double* b = v[1];
+    const double* c = v[2];
+    const double bc[3] = {b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
+    const double la = std::sqrt(dotd(a, a)), lb = std::sqrt(dotd(b, b)), lc = std::sqrt(dotd(c, c));
+    sum += 2.0 * std::atan2(dotd(a, bc), la * lb * lc + dotd(a, b) * lc + dotd(a, c) * lb + dotd(b, c) * la);
+  }
+  return sum / (4.0 * 3.14159265358979323846);
+}
+
 }  // namespace invr

@@ -53,6 +53,11 @@ TriangleMesh makeHeightfield(int cells, const std::function<float(float u, float
 // Degenerate (zero-area) triangles are removed; returns how many were.
 size_t validateMesh(TriangleMesh& mesh, const std::string& what);
 
+// The generalised winding number of the mesh about point p: the solid angle its triangles
+// subtend, signed by their winding, over 4 pi. For a closed, consistently wound mesh it is 0
+// outside, +1 inside if the faces' normals point out and -1 if they point in.
+double meshWindingNumber(const TriangleMesh& mesh, Vec3 p);
+
 // Vertex normals for a mesh that has none: each vertex's triangle normals weighted by the
 // triangle's angle at the vertex (independent of how finely the surface is tessellated). With
 // `weld` (mesh vertex -> welded vertex), copies of a vertex at seams share one normal, summed over

@@ -102,7 +102,8 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
     for (uint32_t m : p.params.movingMeshes()) deformed = deformed || p.params.deforms(m);
     if (deformed)
       est.push_back("vertex parameters: each vertex takes the interior term through the hit triangle's position and normal, and the boundary "
-                    "terms through the edge point's position along its edge; every edge of a deforming mesh is a crease candidate");
+                    "terms through the edge point's position along its edge; every edge of a deforming flat-shaded mesh is a crease "
+                    "candidate, and of a deforming smooth one its shadow terminator's edges (found each step)");
     if (g.method == GradientMethod::Restir)
       est.push_back(b.multiViewShortcut
                         ? "reused samples' support tested in the current geometry (multi-view shortcut, §3.2: biased while geometry moves)"

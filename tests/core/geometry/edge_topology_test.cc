@@ -38,6 +38,32 @@ TEST(EdgeTopology, ClosedPrimitivesHaveNoBoundaryEdges) {
   }
 }
 
+// Closed and consistently wound: the closed primitives, flipped or not; not an open one, nor a
+// closed one with one face turned against its neighbours. The winding number about a point tells
+// inside (+1 with outward normals, -1 flipped) from outside (0).
+TEST(EdgeTopology, ClosedOrientedMeshesAndTheirWindingNumber) {
+  for (TriangleMesh m : {makeBox(), makeSphere(8), makeCylinder(24, true), makeTorusKnot(2, 3, 0.15f, 64, 8)}) {
+    EXPECT_TRUE(EdgeTopology::build(m).closedOriented());
+    TriangleMesh flipped = m;
+    flipped.flipWinding(false);
+    EXPECT_TRUE(EdgeTopology::build(flipped).closedOriented());
+  }
+  EXPECT_FALSE(EdgeTopology::build(makeQuad()).closedOriented());
+  EXPECT_FALSE(EdgeTopology::build(makeCylinder(16, false)).closedOriented());
+  TriangleMesh box = makeBox();
+  std::swap(box.indices[1], box.indices[2]);  // one face wound against its neighbours
+  EXPECT_FALSE(EdgeTopology::build(box).closedOriented());
+
+  TriangleMesh sphere = makeSphere(16);
+  EXPECT_NEAR(meshWindingNumber(sphere, Vec3(0.1f, 0.2f, -0.3f)), 1.0, 1e-6) << "inside, outward normals";
+  EXPECT_NEAR(meshWindingNumber(sphere, Vec3(0.f, 0.f, 4.f)), 0.0, 1e-6) << "outside";
+  EXPECT_NEAR(meshWindingNumber(sphere, Vec3(1.5f, -0.2f, 0.3f)), 0.0, 1e-6) << "outside, close";
+  sphere.flipWinding(true);
+  EXPECT_NEAR(meshWindingNumber(sphere, Vec3(0.1f, 0.2f, -0.3f)), -1.0, 1e-6) << "inside, inward normals";
+  const TriangleMesh knot = makeTorusKnot(2, 3, 0.15f, 64, 8);
+  EXPECT_NEAR(meshWindingNumber(knot, Vec3(0.f, 0.f, 0.f)), 0.0, 1e-5) << "the knot's hole is outside it";
+}
+
 TEST(EdgeTopology, OpenPrimitivesHaveTheirRims) {
   EXPECT_EQ(EdgeTopology::build(makeQuad()).boundaryEdges(), 4u);
   EXPECT_EQ(EdgeTopology::build(makeQuad()).edges().size(), 5u);
