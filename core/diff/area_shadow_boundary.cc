@@ -22,7 +22,6 @@ BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples, lightPoints = lightPoints_;
   const uint64_t stream = bv.stream, step = bv.step;
   const SamplerKind samplerKind = bv.sampler;
-  const Camera& cam = scene_.cameras[size_t(view)];
   std::vector<float> power(scene_.lights.size());
   for (size_t i = 0; i < power.size(); ++i) power[i] = emittedPower(scene_.lights[i]);
   if (samples <= 0 || lightPoints <= 0 || *std::max_element(power.begin(), power.end()) <= 0.f) return {};
@@ -42,12 +41,12 @@ BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
     const SurfaceHit y = scene_.surfaceAt(l.mesh, tri, bc.x, bc.y);
     points.push_back({li, y.p, y.ng, double(pickLight.pmf(li)) / double(l.area)});
     // The density of y_j over the pass's lightPoints draws.
-    sources.push_back({ShadowSource::at(y.p), 1.0 / (points.back().pdf * double(lightPoints)), l.mesh});
+    sources.push_back({ShadowSource::at(y.p, y.ng), 1.0 / (points.back().pdf * double(lightPoints)), l.mesh});
   }
   return sampleShadowBorders(
       scene_, params_, topology_, view, bv.adjoint, samples, sources,
-      [&](uint32_t j, float fx, float fy, RayStats& rays) {
-        return pointSourceRadiance(scene_, cam, fx, fy, scene_.lights[points[j].light], points[j], rays);
+      [&](uint32_t j, const SurfaceHit& at, Vec3 eye, RayStats& rays) {
+        return pointSourceRadiance(scene_, at, eye, scene_.lights[points[j].light], points[j], rays);
       },
       stream, step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
 }

@@ -10,7 +10,7 @@
 
 namespace invr {
 
-FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator, const Camera& cam, Vec2 x, Vec2 n, float eps,
+FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator, const Camera& cam, FilmPoint x, Vec2 n, double eps,
                           const Sampler& sampler, SampleCounters& counters) {
   const int W = scene.width, H = scene.height;
   FilmCrossing c;
@@ -18,13 +18,13 @@ FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator
   c.py = std::clamp(int(x.y), 0, H - 1);
   Rgb side[2];
   for (int k = 0; k < 2; ++k) {
-    const float sign = k == 0 ? -1.f : 1.f;
+    const double sign = k == 0 ? -1.0 : 1.0;
     CameraSampleInput in;
     in.x = c.px;
     in.y = c.py;
     in.pixel = uint64_t(c.py) * uint64_t(W) + uint64_t(c.px);
     in.o = cam.eye;
-    in.d = cam.direction(x.x + sign * eps * n.x, x.y + sign * eps * n.y, W, H);
+    in.d = filmDirectionPrecise(cam, x.x + sign * eps * double(n.x), x.y + sign * eps * double(n.y), W, H);
     Sampler sideSampler = sampler.fork(0);  // common random numbers for the two sides
     side[k] = estimator.sample(in, sideSampler, counters, Rgb(0.f), nullptr, nullptr);
   }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/diff/boundary_term.h"
+#include "core/diff/film_projection.h"
 #include "core/diff/interior_estimator.h"
 #include "core/diff/pass_driver.h"
 
@@ -26,7 +27,7 @@ struct FilmCrossing {
 // With a fork per side, the crease samples of a fine flat mesh (82K triangles) carried jumps of
 // 0.2-1 where the true jump is ~0.01, and the primary term's noise was ~35x the whole gradient
 // (docs/differentiable-rendering.md, "A fine mesh's pose"). ReSTIR reads x's pixel's reservoirs.
-FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator, const Camera& cam, Vec2 x, Vec2 n, float eps,
+FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator, const Camera& cam, FilmPoint x, Vec2 n, double eps,
                           const Sampler& sampler, SampleCounters& counters);
 
 // Runs samples 0 .. samples-1 in fixed chunks on the thread pool. body(i, counters, grad) adds

@@ -11,6 +11,21 @@ namespace invr {
 
 namespace v1 = invr::v1;
 
+std::vector<EdgeTopology> buildBoundaryTopology(const Scene& scene, const ParameterRegistry& params) {
+  std::vector<EdgeTopology> topology;
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    topology.push_back(EdgeTopology::build(scene.meshes[m]));
+    // Deforming meshes: any two faces may turn apart. Smooth meshes that deform recompute welded
+    // vertex normals: no edge is a crease; their edges where a light's facing flips (the shadow
+    // terminator) are the primary term's own candidates, found per step.
+    if (params.deforms(m)) {
+      if (scene.meshes[m].normals.empty()) topology.back().markEveryEdgeACrease();
+      else topology.back().markNoEdgeACrease();
+    }
+  }
+  return topology;
+}
+
 BoundaryOptions parseBoundaryOptions(const v1::BoundarySpec& b) {
   auto fail = [](const std::string& field, const std::string& why) { throw InputError("optimization.boundary." + field + ": " + why); };
   const BoundaryOptions defaults;

@@ -38,6 +38,10 @@ struct BoundaryOptions {
   // The primary term's shadow-terminator candidates on smooth meshes (PrimaryBoundary::
   // terminatorJumpBound). Always on in jobs; tests turn it off to measure the term's share.
   bool terminators = true;
+  // The primary term's side offsets, in float roundings of the edge point on the film (PrimaryBoundary:
+  // the first offset and the smallest it shrinks to). Jobs keep these; tests vary them to measure
+  // the estimate's dependence on them.
+  double sideOffsetRoundings = 4.0, minSideOffsetRoundings = 0.25;
   bool secondary = true;  // shadow borders of point, spot, area and environment lights
   int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
   int lightPoints = 16;   // light points (area lights) and directions (environments) per pass whose shadow borders are sampled
@@ -115,7 +119,13 @@ struct BoundaryPlanInput {
   const Scene& scene;
   const GradientOptions& options;
   size_t shardViews = 1;  // views of the largest shard
+  const ParameterRegistry* params = nullptr;  // the job's parameters, for counts in the scene as given
 };
+
+// The edge topology the boundary terms use, per mesh of the scene (occluders need not move to cast
+// a moving shadow): deforming flat-shaded meshes have every edge a crease, deforming smooth ones
+// none (their terminators are found per step).
+std::vector<EdgeTopology> buildBoundaryTopology(const Scene& scene, const ParameterRegistry& params);
 
 // One kind of boundary term, as it registers itself.
 struct BoundaryTermKind {

@@ -15,7 +15,6 @@ bool DeltaShadowBoundary::applies(const Scene& scene) {
 }
 
 BoundaryPassStats DeltaShadowBoundary::run(const BoundaryView& bv) {
-  const Camera& cam = scene_.cameras[size_t(bv.view)];
   std::vector<BorderSource> sources;
   std::vector<const Light*> lights;
   for (const Light& light : scene_.lights) {
@@ -25,7 +24,7 @@ BoundaryPassStats DeltaShadowBoundary::run(const BoundaryView& bv) {
   }
   return sampleShadowBorders(
       scene_, params_, topology_, bv.view, bv.adjoint, bv.samples, sources,
-      [&](uint32_t j, float fx, float fy, RayStats& rays) { return deltaSourceRadiance(scene_, cam, fx, fy, *lights[j], rays); }, bv.stream,
+      [&](uint32_t j, const SurfaceHit& at, Vec3 eye, RayStats& rays) { return deltaSourceRadiance(scene_, at, eye, *lights[j], rays); }, bv.stream,
       bv.step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
 }
 

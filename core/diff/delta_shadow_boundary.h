@@ -3,8 +3,8 @@
 // a receiver is where rays from the light graze an occluder's silhouette edge (silhouette as seen
 // from the light); shadow_border.h parametrises its film image by the occluder edge. A sample
 // picks a (light, edge) pair by the weights of collectShadowEdges and t uniformly, and weighs the
-// jump of that one light's radiance across the border (deltaSourceRadiance on each film side:
-// exact, one camera and one shadow ray a side) by dLoss/dI of its pixel. Only that light's jump:
+// jump of that one light's radiance across the border (deltaSourceRadiance on each side, points of
+// the receiver's plane: exact, one shadow ray a side) by dLoss/dI of its pixel. Only that light's jump:
 // the whole radiance difference the job's estimator measured there also held the other lights'
 // noise and whatever other discontinuity lay under a border point (on the knot under its point
 // fills this term read 1.91e-3 that way, 1.74e-3 now). Borders hidden from the camera, or on the

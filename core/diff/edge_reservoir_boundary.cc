@@ -226,7 +226,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
       const float g = luminance(areaEmission(l, c.n, toB)) * std::abs(dot(c.n, toB)) / (d2 * std::sqrt(d2));
       ShadowBorderPoint bp;
       float h = 0.f;
-      if (shadowBorderPoint(scene_, params_, cam, ShadowSource::at(c.y), se, t, bp, counters.rays)) {
+      if (shadowBorderPoint(scene_, params_, cam, ShadowSource::at(c.y, c.n), se, t, bp, counters.rays)) {
         const float a = smoothAdj[size_t(std::clamp(int(bp.x.y), 0, H - 1)) * size_t(W) + size_t(std::clamp(int(bp.x.x), 0, W - 1))];
         const Vec3 toY = c.y - bp.hit.p;
         const float r2 = lengthSquared(toY);
@@ -309,7 +309,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
 
     // The sample: F(p^B, y) W / p(p^B), F measured on the film (Eq. 25).
     ShadowBorderPoint bp;
-    const bool onFilm = shadowBorderPoint(scene_, params_, cam, ShadowSource::at(chosen.y), se, t, bp, counters.rays);
+    const bool onFilm = shadowBorderPoint(scene_, params_, cam, ShadowSource::at(chosen.y, chosen.n), se, t, bp, counters.rays);
     const Vec3 dir = normalize(r.pB - chosen.y);
     if (onFilm) {
       r.hasP1 = true;
@@ -325,8 +325,8 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
     }
     const Light& l = scene_.lights[chosen.light];
     const LightPoint lp{chosen.light, chosen.y, chosen.n, 0.0};
-    const Rgb minus = pointSourceRadiance(scene_, cam, bp.x.x - bp.eps * bp.n.x, bp.x.y - bp.eps * bp.n.y, l, lp, counters.rays);
-    const Rgb plus = pointSourceRadiance(scene_, cam, bp.x.x + bp.eps * bp.n.x, bp.x.y + bp.eps * bp.n.y, l, lp, counters.rays);
+    const Rgb minus = pointSourceRadiance(scene_, bp.side[0], cam.eye, l, lp, counters.rays);
+    const Rgb plus = pointSourceRadiance(scene_, bp.side[1], cam.eye, l, lp, counters.rays);
     const Rgb diff = minus - plus;
     if (isBlack(diff)) return;
     const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, W - 1), std::clamp(int(bp.x.y), 0, H - 1));

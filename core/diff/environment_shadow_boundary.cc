@@ -21,7 +21,6 @@ BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples, directions = directions_;
   const uint64_t stream = bv.stream, step = bv.step;
   const SamplerKind samplerKind = bv.sampler;
-  const Camera& cam = scene_.cameras[size_t(view)];
   std::vector<uint32_t> environments;
   for (uint32_t i = 0; i < scene_.lights.size(); ++i)
     if (scene_.lights[i].isInfinite()) environments.push_back(i);
@@ -43,7 +42,7 @@ BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
   }
   return sampleShadowBorders(
       scene_, params_, topology_, view, bv.adjoint, samples, sources,
-      [&](uint32_t j, float fx, float fy, RayStats& rays) { return directionalSourceRadiance(scene_, cam, fx, fy, dirs[j], rays); }, stream,
+      [&](uint32_t j, const SurfaceHit& at, Vec3 eye, RayStats& rays) { return directionalSourceRadiance(scene_, at, eye, dirs[j], rays); }, stream,
       step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
 }
 

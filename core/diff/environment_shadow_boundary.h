@@ -6,7 +6,7 @@
 // directions w_j by the environment's own sampling (an environment light uniformly, then w by its
 // importance map; uniform on the sphere for a constant one), collects each one's silhouette edges,
 // and samples (j, edge, t) from the union. The jump across the border is that direction's
-// contribution f |cos| Le on each side, evaluated directly (one camera and one shadow ray a side),
+// contribution f |cos| Le on each side, evaluated directly (one shadow ray a side),
 // so no other light's noise enters it. Unbiased for any number of directions >= 1.
 #pragma once
 

@@ -59,17 +59,7 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
     INVR_INVARIANT(m.empty() || m.size() == size_t(scene.width) * size_t(scene.height), "a loss mask matches the film");
   boundaryTerms_ = boundaryTermsFor(scene, params, opt_);
   // Occluders need not move to cast a moving shadow (a moving receiver drags it): every mesh.
-  if (params.hasShapeParameters())
-    for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
-      topology_.push_back(EdgeTopology::build(scene.meshes[m]));
-      // Deforming meshes: any two faces may turn apart. Smooth meshes that deform recompute welded
-      // vertex normals: no edge is a crease; their edges where a light's facing flips (the shadow
-      // terminator) are the primary term's own candidates, found per step.
-      if (params.deforms(m)) {
-        if (scene.meshes[m].normals.empty()) topology_.back().markEveryEdgeACrease();
-        else topology_.back().markNoEdgeACrease();
-      }
-    }
+  if (params.hasShapeParameters()) topology_ = buildBoundaryTopology(scene, params);
 }
 
 GradientEngine::~GradientEngine() = default;

@@ -44,27 +44,32 @@ bool clipToFilm(Vec2 fa, Vec2 fb, float W, float H, float& s0, float& s1) {
   return s1 > s0;
 }
 
-// The film offset of the two side samples. They must straddle this edge and nothing else. Next to
-// a silhouette the faces turn edge-on and their film slivers get arbitrarily thin; a side stepping
-// over one measured the next crease's jump too, a bias that grew with the offset (the knot's
-// gradient moved 5 % between 1e-4 and 1e-3 px). So the offset shrinks tenfold until a side lands
-// on each of a crease's two faces, or one on a silhouette's front face, down to kMinSideOffsetPixels.
-float sideOffset(const Scene& scene, const Camera& cam, const FilmEdge& e, Vec2 x, Vec2 n, SampleCounters& counters) {
-  float eps = PrimaryBoundary::kSideOffsetPixels;
+// The film offset of the two side samples. They must straddle this edge and nothing else, and
+// measure the radiance where the edge is. Next to a silhouette the faces turn edge-on and their
+// film slivers get arbitrarily thin; a side stepping over one measured the next crease's jump too.
+// And a side a fixed film offset off the edge lands, on a face seen edge-on, far from it in the
+// world, where the radiance is not the edge's: on the knot, offsets starting at 1e-3 px with a
+// floor of 1e-4 px read its derivative 0.7 % high. So the offset is set by how precisely the
+// edge's point is known (`precision`: a few float roundings of it, in pixels) and shrinks tenfold
+// until a side lands on each of a crease's two faces, or one on a silhouette's front face, down to
+// `floor`.
+double sideOffset(const Scene& scene, const Camera& cam, const FilmEdge& e, FilmPoint x, Vec2 n, double start, double floor,
+                  SampleCounters& counters) {
+  double eps = start;
   for (;;) {
     uint32_t face[2] = {MeshEdge::kNone, MeshEdge::kNone};
     for (int k = 0; k < 2; ++k) {
-      const float sign = k == 0 ? -1.f : 1.f;
+      const double sign = k == 0 ? -1.0 : 1.0;
       SurfaceHit h;
       ++counters.rays.camera;
-      if (scene.intersect(cam.eye, cam.direction(x.x + sign * eps * n.x, x.y + sign * eps * n.y, scene.width, scene.height), h) &&
-          h.mesh == e.mesh && (h.tri == e.face0 || h.tri == e.face1))
+      const Vec3 d = filmDirectionPrecise(cam, x.x + sign * eps * double(n.x), x.y + sign * eps * double(n.y), scene.width, scene.height);
+      if (scene.intersect(cam.eye, d, h) && h.mesh == e.mesh && (h.tri == e.face0 || h.tri == e.face1))
         face[k] = h.tri;
     }
     const bool on0 = face[0] != MeshEdge::kNone, on1 = face[1] != MeshEdge::kNone;
     const bool straddles = e.silhouette ? on0 != on1 : on0 && on1 && face[0] != face[1];
-    if (straddles || eps <= PrimaryBoundary::kMinSideOffsetPixels) return eps;
-    eps *= 0.1f;
+    if (straddles || eps <= floor) return eps;
+    eps *= 0.1;
   }
 }
 
@@ -199,8 +204,14 @@ std::vector<PrimaryBoundary::Candidate> PrimaryBoundary::candidates(int view, si
   return out;
 }
 
-PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, bool terminators)
-    : scene_(scene), params_(params), topology_(topology), terminators_(terminators) {}
+PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
+                                 const BoundaryOptions& options)
+    : scene_(scene),
+      params_(params),
+      topology_(topology),
+      terminators_(options.terminators),
+      sideOffsetRoundings_(options.sideOffsetRoundings),
+      minSideOffsetRoundings_(options.minSideOffsetRoundings) {}
 
 BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
   const int view = bv.view, samples = bv.samples;
@@ -264,10 +275,10 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     float u = 0.f;
     const size_t picked = pick.sample(sampler.next1D(), &u);
     const FilmEdge& e = edges[picked];
-    // A point uniform in film length on the clipped part, and the edge point under it
-    // (perspective-correct: 1/z and t/z are linear on the film).
+    // A point uniform in film length on the clipped part, and the edge point P under it
+    // (perspective-correct: 1/z and t/z are linear on the film); its sides are taken about P's
+    // own film position.
     const float s = e.s0 + (e.s1 - e.s0) * u;
-    const Vec2 x = e.fa + (e.fb - e.fa) * s;
     const float t = s * e.za / ((1.f - s) * e.zb + s * e.za);
     const Vec3 P = e.a + (e.b - e.a) * t;
     // An edge point the camera does not see has no jump of its own, only what lies in front of it,
@@ -280,13 +291,17 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     Vec2 dir = e.fb - e.fa;
     dir = dir * (1.f / std::sqrt(dir.x * dir.x + dir.y * dir.y));
     const Vec2 n(-dir.y, dir.x);
-    const FilmCrossing c = radianceJump(scene_, estimator, cam, x, n, sideOffset(scene_, cam, e, x, n, counters), sampler, counters);
+    Vec3 dx, dy;
+    filmJacobian(cam, P, H, dx, dy);
+    // P's own rounding (half an ulp per coordinate, a few per operation) seen on the film.
+    const double precision = std::ldexp(1.0, -23) * (1.0 + double(maxComponent(vmax(P, -P)))) * double(std::max(length(dx), length(dy)));
+    const FilmPoint xp = filmPositionPrecise(cam, P, W, H);
+    const double eps = sideOffset(scene_, cam, e, xp, n, sideOffsetRoundings_ * precision, minSideOffsetRoundings_ * precision, counters);
+    const FilmCrossing c = radianceJump(scene_, estimator, cam, xp, n, eps, sampler, counters);
     const Rgb adj = adjoint.rgb(c.px, c.py);
     // 1 / pdf per unit film length: the sum of weights over the edge's jump bound.
     const float w = (adj.x * c.jump.x + adj.y * c.jump.y + adj.z * c.jump.z) * total / (jumpBounds[picked] * float(samples));
     if (w == 0.f) return;
-    Vec3 dx, dy;
-    filmJacobian(cam, P, H, dx, dy);
     // Where P lies on the unclipped edge, for vertex parameters.
     const Vec3 A = scene_.meshes[e.mesh].positions[e.v0], AB = scene_.meshes[e.mesh].positions[e.v1] - A;
     const float tEdge = std::clamp(dot(P - A, AB) / dot(AB, AB), 0.f, 1.f);
@@ -307,16 +322,31 @@ const RegisterBoundaryTerm kPrimary({
     .order = 10,
     .stream = kPrimaryBoundaryStream,
     .applies = [](const Scene&, const GradientOptions& o) { return o.boundary.primary; },
-    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> { return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology, s.options.boundary.terminators);
+    .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
+      return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology, s.options.boundary);
     },
     .describe =
         [](const BoundaryPlanInput& in) {
+          std::string counts;
+          if (in.params && !in.scene.cameras.empty()) {
+            const std::vector<EdgeTopology> topology = buildBoundaryTopology(in.scene, *in.params);
+            size_t hidden = 0, kinds[3] = {0, 0, 0};
+            const PrimaryBoundary term(in.scene, *in.params, topology, in.options.boundary);
+            for (const PrimaryBoundary::Candidate& c : term.candidates(0, &hidden)) ++kinds[int(c.kind)];
+            using Kind = PrimaryBoundary::EdgeKind;
+            counts = "; in the scene as given, view 0 has " + std::to_string(kinds[int(Kind::Silhouette)]) + " silhouette, " +
+                     std::to_string(kinds[int(Kind::Crease)]) + " crease and " + std::to_string(kinds[int(Kind::Terminator)]) +
+                     " terminator candidate edges (before clipping to the film), and " + std::to_string(hidden) +
+                     " hidden creases and terminators left out";
+          }
           return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
                  " edge samples per view and step on silhouette, crease and (smooth meshes) shadow-terminator edges of moving "
                  "meshes, by clipped film length times a bound on the jump (creases between flat faces: |n0 - n1|; terminators: the "
                  "lit side's shading cosine), creases and terminators that a closed mesh seen from outside turns away from the eye "
                  "skipped (counted in the stats' hidden_edges_skipped), both sides with the same random numbers, hidden edge "
-                 "points skipped; both sides traced with the interior estimator; box pixel filter, so no pixel-boundary term";
+                 "points skipped; both sides traced with the interior estimator, a few float roundings of the edge point off it; box "
+                 "pixel filter, so no pixel-boundary term" +
+                 counts;
         },
     .memoryBytes = {},
 });

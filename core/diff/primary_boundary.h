@@ -31,7 +31,8 @@ inline constexpr StreamId kPrimaryBoundaryStream{12};
 class PrimaryBoundary final : public BoundaryTerm {
  public:
   // topology[m] for every mesh the registry moves (others may be empty).
-  PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, bool terminators = true);
+  // options: terminators and the side offsets (BoundaryOptions; the rest is not read here).
+  PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, const BoundaryOptions& options = {});
 
   // Adds adjoint-weighted edge samples for one view into its gradient. `adjoint` is dLoss/dI per
   // pixel and channel (every pixel traced); both sides are traced with the view's estimator.
@@ -78,11 +79,6 @@ class PrimaryBoundary final : public BoundaryTerm {
   // candidates, summed over views) and hidden_edges_skipped.
   void endStep(RayStats& rays, std::vector<std::pair<std::string, uint64_t>>& counters) override;
 
-  // How far off the edge, in pixels, the two sides are sampled.
-  static constexpr float kSideOffsetPixels = 1e-3f;
-  // The smallest it shrinks to where a face next to the edge is thinner (film positions of the
-  // edge and of camera rays agree to about 1e-5 px in float).
-  static constexpr float kMinSideOffsetPixels = 1e-4f;
   // The camera-to-edge segment tested for occluders ends this fraction of its length short of the
   // edge point, so a face of the edge, however grazing, is not taken for one.
   static constexpr float kVisibilitySlack = 1e-3f;
@@ -92,6 +88,11 @@ class PrimaryBoundary final : public BoundaryTerm {
   const ParameterRegistry& params_;
   const std::vector<EdgeTopology>& topology_;
   bool terminators_;
+  // How far off the edge the two sides are sampled: this many times the film image of the edge
+  // point's float rounding (2^-23 (1 + max |P_i|) times the film's pixels per unit length there;
+  // about 4e-6 px on the knot's 64 x 48 film), film positions and ray directions in double; and the
+  // smallest it shrinks to where a face next to the edge is thinner.
+  double sideOffsetRoundings_, minSideOffsetRoundings_;
   uint64_t terminatorEdges_ = 0, hiddenSkipped_ = 0;
 };
 

@@ -31,8 +31,9 @@ namespace invr {
 struct ShadowSource {
   Vec3 v;
   bool directional = false;
-  static ShadowSource at(Vec3 p) { return {p, false}; }
-  static ShadowSource towards(Vec3 w) { return {w, true}; }
+  Vec3 n;  // a point on an emitter: the emitter's normal (shadow rays end just off it); else 0
+  static ShadowSource at(Vec3 p, Vec3 emitterNormal = Vec3(0.f)) { return {p, false, emitterNormal}; }
+  static ShadowSource towards(Vec3 w) { return {w, true, Vec3(0.f)}; }
   // From x towards the source (not normalised).
   Vec3 from(Vec3 x) const { return directional ? v : v - x; }
 };
@@ -62,8 +63,11 @@ struct ShadowBorderPoint {
   float denom = 0.f; // nr . toE
   Vec2 x, n;         // film position and the unit film normal of the border there
   float speed = 0.f; // |dx/dt| in pixels
-  float eps = 0.f;   // how far (pixels) each side is sampled from x
   Vec3 jx, jy;       // d(film x, y)/dy
+  // The two sides the jump is measured between (L(side[0]) - L(side[1]) is the film's
+  // L(x - eps n) - L(x + eps n)): points of the receiver's plane just off the border along its
+  // normal in that plane, far enough to straddle the border the renderer draws.
+  SurfaceHit side[2];
 };
 
 // The border point of edge `se` at t for `source`; false when there is none on the film or
@@ -72,15 +76,19 @@ struct ShadowBorderPoint {
 bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
                        ShadowBorderPoint& out, RayStats& rays);
 
+// The receiver `hit`'s surface (its triangle's normal, interpolated shading normal and uv) at q, a
+// point of that triangle's plane, inside the triangle or just beyond it.
+SurfaceHit receiverAt(const Scene& scene, const SurfaceHit& hit, Vec3 q);
+
 // Adds w * (n . J dy/dtheta) for the occluder's and the receiver's shape parameters, where w is
 // the sample's weight: adjoint . ΔL * speed / pdf.
 void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
                              double w, PathGradient& grad);
 
-// What the point or spot light l adds to the film sample through (fx, fy): f |cos| I falloff / r^2,
+// What the point or spot light l adds to surface point `at` seen from `eye`: f |cos| I falloff / r^2,
 // visibility included. The delta-light border term differences this one source across the
 // border: its jump is exact, and no other light's noise or other discontinuity enters it.
-Rgb deltaSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, RayStats& rays);
+Rgb deltaSourceRadiance(const Scene& scene, const SurfaceHit& at, Vec3 eye, const Light& l, RayStats& rays);
 
 // Area lights as integrals of point sources (area_shadow_boundary.h, edge_reservoir_boundary.h).
 float emittedPower(const Light& l);  // luminance of the power an area light emits; 0 for other lights
@@ -92,8 +100,8 @@ struct LightPoint {
 };
 
 // What the point source at y (a point of area light l, intensity Le(y) |cos_y| dA) adds to the
-// film sample through (fx, fy): f |cos_x| Le(y) |cos_y| / r^2, visibility included.
-Rgb pointSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const Light& l, const LightPoint& lp, RayStats& rays);
+// surface point `at` seen from `eye`: f |cos_x| Le(y) |cos_y| / r^2, visibility included.
+Rgb pointSourceRadiance(const Scene& scene, const SurfaceHit& at, Vec3 eye, const Light& l, const LightPoint& lp, RayStats& rays);
 
 // A source whose shadow borders a pass samples: a delta light, or one of the points (directions)
 // a pass drew on an area light (an environment).
@@ -103,12 +111,12 @@ struct BorderSource {
   uint32_t skipMesh = UINT32_MAX;  // the emitter the source lies on
 };
 
-// What `source` adds to the film sample through (fx, fy), visibility included.
-using BorderSourceRadiance = std::function<Rgb(uint32_t source, float fx, float fy, RayStats& rays)>;
+// What `source` adds to surface point `at` seen from `eye`, visibility included.
+using BorderSourceRadiance = std::function<Rgb(uint32_t source, const SurfaceHit& at, Vec3 eye, RayStats& rays)>;
 
 // The pass the shadow-border estimators share: collects every source's silhouette edges, samples
 // (source, edge, t) by their weights and t uniformly, measures the jump of that source's radiance
-// across the border (one film sample a side), and adds adjoint . jump * speed * weight / pdf
+// across the border (ShadowBorderPoint::side), and adds adjoint . jump * speed * weight / pdf
 // through addShadowBorderGradient. Sample i uses the key (stream, step, view, i).
 BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
                                       int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
@@ -116,8 +124,8 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
                                       std::vector<double>& gradient, const std::atomic<bool>* cancel,
                                       SamplerKind samplerKind = SamplerKind::Independent);
 
-// What the environment's direction `ls.wi` (radiance ls.radiance, dist infinite) adds to the film
-// sample through (fx, fy): f |cos| Le, visibility included (per unit solid angle).
-Rgb directionalSourceRadiance(const Scene& scene, const Camera& cam, float fx, float fy, const LightSample& ls, RayStats& rays);
+// What the environment's direction `ls.wi` (radiance ls.radiance, dist infinite) adds to surface
+// point `at` seen from `eye`: f |cos| Le, visibility included (per unit solid angle).
+Rgb directionalSourceRadiance(const Scene& scene, const SurfaceHit& at, Vec3 eye, const LightSample& ls, RayStats& rays);
 
 }  // namespace invr

@@ -88,7 +88,7 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
     const auto& b = g.boundary;
     size_t maxShardViews = 0;
     for (const auto& sh : p.shards) maxShardViews = std::max(maxShardViews, sh.size());
-    const BoundaryPlanInput input{s, g, maxShardViews};
+    const BoundaryPlanInput input{s, g, maxShardViews, &p.params};
     if (!b.primary) est.push_back("boundary, primary: off (ablation)");
     if (!b.secondary) est.push_back("boundary, secondary (shadow borders): off (ablation)");
     for (const BoundaryTermKind* term : boundaryTermsFor(s, p.params, g)) est.push_back(term->describe(input));

@@ -119,7 +119,9 @@ struct BallCandidates {
   explicit BallCandidates(const std::string& json, bool terminators = true) : scene(test::sceneFromJson(json.c_str())) {
     reg.add(*scene, "shapes/ball/translation");
     for (const TriangleMesh& m : scene->meshes) topology.push_back(EdgeTopology::build(m));
-    candidates = PrimaryBoundary(*scene, reg, topology, terminators).candidates(0);
+    BoundaryOptions options;
+    options.terminators = terminators;
+    candidates = PrimaryBoundary(*scene, reg, topology, options).candidates(0);
   }
   // Per edge of the ball: its kind among the candidates, or none.
   std::vector<int> kinds() const {
