@@ -93,7 +93,8 @@ void runExport(const ExportArgs& a) {
   for (const auto& n : out.notes) std::cerr << "note: " << n << "\n";
   std::cout << "wrote " << fs::absolute(xml).lexically_normal().string() << " (" << out.scene.files.size() - 1
             << " meshes and images beside it) and " << fs::absolute(out.job).lexically_normal().string()
-            << " (the job over it); check with: invr render " << xml.string() << "\n";
+            << " (the job over it); check with: invr render --scene " << xml.string() << " -o "
+            << fs::path(xml).replace_extension(".png").string() << "\n";
 }
 
 }  // namespace

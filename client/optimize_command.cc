@@ -7,7 +7,7 @@
 #include <memory>
 
 #include "proto/wire/cli_checks.h"
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/commands.h"
 #include "client/common/job_argument.h"
 #include "client/common/progress.h"

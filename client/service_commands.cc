@@ -18,7 +18,7 @@
 
 #include "proto/wire/cli_checks.h"
 #include "proto/wire/json_lines.h"
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/commands.h"
 #include "client/common/embedded.h"
 #include "client/common/exit_codes.h"
@@ -171,10 +171,13 @@ void addJobArgs(CLI::App* cmd, JobArgs& a) {
   addSceneArgs(cmd, a.sceneArgs, true);
 }
 
-// The job from its argument with overrides applied; baseDir for its relative asset paths.
-v1::JobSpec loadJob(const JobArgs& a, std::filesystem::path& baseDir) {
+// The job from its argument with overrides applied; baseDir for its relative asset paths. With
+// `server`, the server resolves it (ResolveJob, as Python's client does) and the spec names every
+// file by content; without, it is resolved here with the same code.
+v1::JobSpec loadJob(const JobArgs& a, std::filesystem::path& baseDir, ServiceClient* server = nullptr) {
   AssetResolver assets;
-  v1::JobSpec job = optimizationJobFromArgument(a.job, assets, a.sceneArgs);
+  v1::JobSpec job = server ? server->resolve(a.job, a.sceneArgs.defines, a.sceneArgs.params, a.sceneArgs.sets, true)
+                           : optimizationJobFromArgument(a.job, assets, a.sceneArgs);
   baseDir = assets.baseDir;
   if (a.steps > 0) job.mutable_optimization()->set_steps(a.steps);
   if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
@@ -327,15 +330,14 @@ struct RunArgs : JobArgs {
 int runJob(const RunArgs& a) {
   interruptFlag();
   std::filesystem::path baseDir;
-  v1::JobSpec job = loadJob(a, baseDir);
   std::filesystem::path out(a.out);
   if (!a.server.empty() && !a.httpAddress.empty())
     throw InputError("--http-address is the embedded server's dashboard; a running server has its own (invr-server --http-address)");
   if (!a.server.empty() && a.finalSpp != 64)
     throw InputError("--final-spp is the embedded server's; a running server has its own (invr-server --final-spp)");
-  if (!a.server.empty()) {  // against a running server: submit, watch, fetch
+  if (!a.server.empty()) {  // against a running server: resolve, submit, watch, fetch
     ServiceClient c = connect(a.server);
-    c.uploadAssets(job, baseDir);
+    v1::JobSpec job = loadJob(a, baseDir, &c);
     auto r = c.submit(job, randomRequestId());
     (a.json ? std::cerr : std::cout) << "submitted " << r.job_id() << " to " << a.server << "\n";
     int code = watchToEnd(c, r.job_id(), 0, a.json, "the job goes on: invr watch " + r.job_id() + " --server " + a.server);
@@ -347,6 +349,7 @@ int runJob(const RunArgs& a) {
   }
 
   // Embedded: a server in this process and local worker processes.
+  v1::JobSpec job = loadJob(a, baseDir);
   AssetResolver localAssets;
   localAssets.baseDir = baseDir;
   // Fail fast, with the file's own paths in errors; no BVH: this process never traces a ray.
@@ -440,9 +443,8 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   s->add_option("--request-id", *requestId, "makes a retried submission idempotent (default: random)");
   s->callback([sub, requestId, &exitCode] {
     std::filesystem::path baseDir;
-    v1::JobSpec job = loadJob(*sub, baseDir);
     ServiceClient c = connect(sub->server);
-    c.uploadAssets(job, baseDir);
+    v1::JobSpec job = loadJob(*sub, baseDir, &c);
     auto resp = c.submit(job, requestId->empty() ? randomRequestId() : *requestId);
     std::cout << resp.job_id() << "\n";
     exitCode = exit_code::kOk;
@@ -563,7 +565,7 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   chc->add_option("-o,--out", ch->out, "chart file (.png or .svg)")->capture_default_str();
   chc->add_option("--x", ch->x, "x axis")->check(CLI::IsMember({"seconds", "step", "steps"}))->capture_default_str();
   chc->add_option("--y", ch->y,
-                  "y axis (image_error: CSVs from invr eval and bench reconstruct; image_loss: the smoothed one-render loss of run, "
+                  "y axis (image_error: CSVs from invr-lab eval and bench reconstruct; image_loss: the smoothed one-render loss of run, "
                   "fetch and optimize)")
       ->check(CLI::IsMember({"param_error", "loss", "image_error", "shape_error", "image_loss"}))
       ->capture_default_str();
@@ -610,7 +612,13 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   pac->add_flag("--json", pa->json, "the SceneDescription (service.proto) as one JSON object: {\"parameters\": [...]}");
   pac->callback([pa, &exitCode] {
     AssetResolver assets;
-    v1::JobSpec job = jobFromArgument(pa->scene, assets, pa->sceneArgs);
+    v1::JobSpec job;
+    if (!pa->server.empty()) {  // resolved by the server, which then describes it
+      ServiceClient c = connect(pa->server);
+      job = c.resolve(pa->scene, pa->sceneArgs.defines, {}, pa->sceneArgs.sets, false);
+    } else {
+      job = jobFromArgument(pa->scene, assets, pa->sceneArgs);
+    }
     printParams(job, assets.baseDir, pa->server, pa->json);
     exitCode = exit_code::kOk;
   });
@@ -629,7 +637,13 @@ void addServiceCommands(CLI::App& app, int& exitCode) {
   pc->add_flag("--json", pl->json, "the JobPlan (service.proto) as one JSON object");
   pc->callback([pl, &exitCode] {
     std::filesystem::path baseDir;
-    v1::JobSpec job = loadJob(*pl, baseDir);
+    v1::JobSpec job;
+    if (!pl->server.empty()) {
+      ServiceClient c = connect(pl->server);
+      job = loadJob(*pl, baseDir, &c);
+    } else {
+      job = loadJob(*pl, baseDir);
+    }
     printPlan(job, baseDir, pl->server, pl->json);
     exitCode = exit_code::kOk;
   });

@@ -83,7 +83,7 @@ fi
 run_ctest build -LE deep
 # Every parser a user's bytes reach, fuzzed for a bounded time (about 2 minutes in all).
 bash deploy/fuzz.sh
-# The evaluation suite's smoke run (`invr eval --quick`, about two minutes); the full suite is run
+# The evaluation suite's smoke run (`invr-lab eval --quick`, about two minutes); the full suite is run
 # by hand: see tests/bench/README.md.
 bash tests/bench/eval_smoke.sh build/bin build/eval-quick
 echo "test.sh: done in $(( $(date +%s) - t0 )) s"

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "server/file_sender.h"
+#include "server/job_resolver.h"
 #include "server/raw_messages.h"
 #include "server/write_queue.h"
 
@@ -173,6 +174,14 @@ grpc::ServerUnaryReactor* ClientService::DescribeScene(grpc::CallbackServerConte
       ctx, bytes, out, "DescribeScene", [this](v1::DescribeSceneRequest& req, v1::SceneDescription* desc) {
         v1::JobSpec spec = req.spec();
         return admission_.describe(spec, desc);
+      });
+}
+
+grpc::ServerUnaryReactor* ClientService::ResolveJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* bytes, grpc::ByteBuffer* out) {
+  // Reads the uploaded scene files (an import parses XML): off the gRPC threads.
+  return answerOffThread<v1::ResolveJobRequest, v1::ResolveJobResponse>(
+      ctx, bytes, out, "ResolveJob", [this](v1::ResolveJobRequest& req, v1::ResolveJobResponse* resp) {
+        return resolveJobRequest(req, assets_, *resp);
       });
 }
 

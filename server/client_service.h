@@ -19,7 +19,8 @@ using RawClientApi = invr::v1::InvrService::WithRawCallbackMethod_UploadAsset<in
         invr::v1::InvrService::WithRawCallbackMethod_CancelJob<invr::v1::InvrService::WithRawCallbackMethod_WatchJob<
             invr::v1::InvrService::WithRawCallbackMethod_FetchResult<invr::v1::InvrService::WithRawCallbackMethod_ListWorkers<
                 invr::v1::InvrService::WithRawCallbackMethod_PlanJob<
-                    invr::v1::InvrService::WithRawCallbackMethod_DescribeScene<invr::v1::InvrService::Service>>>>>>>>>>;
+                    invr::v1::InvrService::WithRawCallbackMethod_DescribeScene<
+                        invr::v1::InvrService::WithRawCallbackMethod_ResolveJob<invr::v1::InvrService::Service>>>>>>>>>>>;
 
 class ClientService final : public RawClientApi {
  public:
@@ -32,6 +33,7 @@ class ClientService final : public RawClientApi {
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* PlanJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* DescribeScene(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
+  grpc::ServerUnaryReactor* ResolveJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* req, grpc::ByteBuffer* resp) override;

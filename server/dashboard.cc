@@ -6,19 +6,24 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <chrono>
 #include <fstream>
+#include <functional>
 #include <list>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <thread>
 
 #include "core/error.h"
 #include "core/image/image.h"
+#include "proto/wire/json_lines.h"
 #include "proto/wire/wire.h"
 #include "server/auth.h"
 #include "server/dashboard_assets.h"
@@ -96,52 +101,9 @@ constexpr const char* kJavaScript = "application/javascript; charset=utf-8";
 
 std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
 
-const char* stateName(v1::JobState s) {
-  switch (s) {
-    case v1::QUEUED: return "queued";
-    case v1::RUNNING: return "running";
-    case v1::SUCCEEDED: return "succeeded";
-    case v1::FAILED: return "failed";
-    case v1::CANCELLED: return "cancelled";
-    default: return "unknown";
-  }
-}
-
-json statusJson(const v1::JobStatus& s) {
-  return json{{"job_id", s.job_id()},
-              {"name", s.name()},
-              {"state", stateName(s.state())},
-              {"reason", s.reason()},
-              {"step", s.step()},
-              {"steps", s.steps()},
-              {"loss", s.loss()},
-              {"param_error", s.param_error()},
-              {"seconds", s.seconds()},
-              {"method", s.method()},
-              {"last_sequence", s.last_sequence()},
-              {"submitted_unix", s.submitted_unix()},
-              {"submitted_by", s.submitted_by()},
-              {"priority", s.priority()},
-              {"workers", s.workers()},
-              {"worker_seconds", s.worker_seconds()},
-              {"steps_per_second", s.steps_per_second()},
-              {"eta_seconds", s.eta_seconds()}};
-}
-
-json stepJson(const v1::StepProgress& sp) {
-  json params = json::object();
-  for (const auto& p : sp.parameters()) params[p.name()] = std::vector<double>(p.values().begin(), p.values().end());
-  return json{{"step", sp.step()},
-              {"steps", sp.steps()},
-              {"loss", sp.loss()},
-              {"param_error", sp.param_error()},
-              {"shape_error", sp.shape_error()},
-              {"image_loss", sp.image_loss()},
-              {"seconds", sp.seconds()},
-              {"steps_per_second", sp.steps_per_second()},
-              {"eta_seconds", sp.eta_seconds()},
-              {"parameters", params}};
-}
+// Messages as every JSON of invr has them (wire::jsonLine: `--json`, progress.jsonl, Python):
+// field names as in the .proto files, enums by name, numbers as numbers, non-finite as null.
+json messageJson(const google::protobuf::Message& m) { return json::parse(wire::jsonLine(m)); }
 
 // What a job's page shows from its results: the latest snapshot per view beside the target (and
 // the final render once there is one), and the texture parameters as images.
@@ -153,10 +115,26 @@ std::optional<uint64_t> number(const std::ssub_match& m) {
   return v;
 }
 
-json imagesJson(const v1::JobStatus& s) {
+// The texture parameters of a parameters.json (name -> its file, relative to the results), or
+// nothing when it cannot be read.
+std::map<std::string, std::string> textureFiles(const std::function<std::optional<std::filesystem::path>(const std::string&)>& path,
+                                                const std::string& prefix) {
+  std::map<std::string, std::string> out;
+  auto p = path(prefix + "parameters.json");
+  if (!p) return out;
+  try {
+    std::ifstream in(*p);
+    const json j = json::parse(in);
+    for (const auto& [name, v] : j.items())
+      if (v.is_object() && v.contains("texture") && v["texture"].is_string()) out[name] = prefix + v["texture"].get<std::string>();
+  } catch (const std::exception&) {
+  }
+  return out;
+}
+
+json imagesJson(const v1::JobStatus& s, const std::function<std::optional<std::filesystem::path>(const std::string&)>& path) {
   static const std::regex snapshot(R"(snapshots/step(\d+)_view(\d+)\.png)");
-  static const std::regex stepTexture(R"(snapshots/step(\d+)/[^/]+\.exr)");
-  static const std::regex render(R"((initial|final|target|variance)_view\d+\.(png|exr))");
+  static const std::regex stepParameters(R"(snapshots/step(\d+)/parameters\.json)");
   std::set<std::string> have(s.results().begin(), s.results().end());
   static const std::regex target(R"((?:snapshots/)?target_view(\d+)\.png)");
   static const std::regex final(R"(final_view(\d+)\.png)");
@@ -166,30 +144,41 @@ json imagesJson(const v1::JobStatus& s) {
   for (const auto& r : have) {
     if (std::regex_match(r, m, snapshot))
       if (auto k = number(m[1])) latest = std::max(latest, *k);
-    if (std::regex_match(r, m, stepTexture))
+    if (std::regex_match(r, m, stepParameters))
       if (auto k = number(m[1])) latestParameters = std::max(latestParameters, *k);
   }
+  // A PNG's radiance twin, when the results hold it: what the exposure control scales.
+  auto hdr = [&](const std::string& png) -> json {
+    const std::string exr = png.substr(0, png.size() - 4) + ".exr";
+    return have.count(exr) ? json(exr) : json(nullptr);
+  };
   std::map<uint64_t, json> views;
   auto view = [&](uint64_t v) -> json& {
     auto& j = views[v];
-    if (j.is_null()) j = json{{"view", v}, {"snapshot", nullptr}, {"target", nullptr}, {"final", nullptr}};
+    if (j.is_null())
+      j = json{{"view", v},          {"snapshot", nullptr},     {"target", nullptr},    {"final", nullptr},
+               {"snapshot_hdr", nullptr}, {"target_hdr", nullptr}, {"final_hdr", nullptr}};
     return j;
   };
   for (const auto& r : have) {
     if (std::regex_match(r, m, snapshot) && number(m[1]) == latest)
-      if (auto v = number(m[2])) view(*v)["snapshot"] = r;
+      if (auto v = number(m[2])) view(*v)["snapshot"] = r, view(*v)["snapshot_hdr"] = hdr(r);
     if (std::regex_match(r, m, target))
-      if (auto v = number(m[1])) view(*v)["target"] = r;
+      if (auto v = number(m[1])) view(*v)["target"] = r, view(*v)["target_hdr"] = hdr(r);
     if (std::regex_match(r, m, final))
-      if (auto v = number(m[1])) view(*v)["final"] = r;
+      if (auto v = number(m[1])) view(*v)["final"] = r, view(*v)["final_hdr"] = hdr(r);
   }
-  json textures = json::array();
+  // Textures by parameter name: the latest snapshot's (the results' once the job has ended),
+  // beside the truth when the job knows it (truth/, written when a synthetic job starts).
   const bool finished = finishedState(s.state()) && have.count("parameters.json");
-  for (const auto& r : have) {
-    const bool top = r.find('/') == std::string::npos && r.size() > 4 && r.compare(r.size() - 4, 4, ".exr") == 0 &&
-                     !std::regex_match(r, render);
-    if (finished ? top : std::regex_match(r, m, stepTexture) && number(m[1]) == latestParameters) textures.push_back(r);
-  }
+  const std::string prefix = finished ? "" : "snapshots/step" + std::to_string(latestParameters) + "/";
+  const auto truth = textureFiles(path, "truth/");
+  json textures = json::array();
+  if (finished || latestParameters > 0)
+    for (const auto& [name, file] : textureFiles(path, prefix)) {
+      auto t = truth.find(name);
+      textures.push_back(json{{"parameter", name}, {"file", file}, {"truth", t == truth.end() ? json(nullptr) : json(t->second)}});
+    }
   json v = json::array();
   for (auto& [k, j] : views) v.push_back(std::move(j));
   return json{{"snapshot_step", latest}, {"views", std::move(v)}, {"textures", std::move(textures)}};
@@ -376,16 +365,20 @@ struct Dashboard::Impl {
     s.Get("/api/jobs", [this](const httplib::Request& req, httplib::Response& res) {
       if (!caller(req, res)) return;
       json jobs = json::array();
-      for (const auto& st : book.list()) jobs.push_back(statusJson(st));
+      for (const auto& st : book.list()) jobs.push_back(messageJson(st));
       res.set_content(dump(json{{"jobs", std::move(jobs)}}), kJson);
     });
     s.Get(R"(/api/jobs/([A-Za-z0-9._-]+))", [this](const httplib::Request& req, httplib::Response& res) {
       if (!caller(req, res)) return;
       v1::JobStatus st;
       if (grpc::Status g = book.status(req.matches[1], &st); !g.ok()) return error(res, 404, g.error_message());
-      json j = statusJson(st);
-      j["results"] = std::vector<std::string>(st.results().begin(), st.results().end());
-      j["images"] = imagesJson(st);
+      json j = messageJson(st);
+      const std::string id = req.matches[1];
+      j["images"] = imagesJson(st, [&](const std::string& name) -> std::optional<std::filesystem::path> {
+        std::filesystem::path p;
+        if (!book.resultPath(id, name, &p).ok()) return std::nullopt;
+        return p;
+      });
       res.set_content(dump(j), kJson);
     });
     s.Get(R"(/api/jobs/([A-Za-z0-9._-]+)/events)", [this](const httplib::Request& req, httplib::Response& res) {
@@ -403,21 +396,56 @@ struct Dashboard::Impl {
       json out = json::array();
       uint64_t next = from;
       for (const auto& e : events) {
-        json j{{"sequence", e.sequence()}, {"unix_ms", e.unix_ms()}};
-        if (e.has_step()) j["step"] = stepJson(e.step());
-        if (e.has_final()) j["final"] = statusJson(e.final());
-        if (e.kind_case() == v1::ProgressEvent::kMessage) j["message"] = e.message();
-        out.push_back(std::move(j));
+        out.push_back(messageJson(e));
         next = e.sequence() + 1;
       }
       res.set_content(dump(json{{"events", std::move(out)}, {"next", next}}), kJson);
     });
+    // An exposure that shows an HDR image: the one that maps the 99th percentile of its luminance
+    // to white (an oxalis target: spot pools at 147 over a median of 0.008).
+    s.Get(R"(/api/jobs/([A-Za-z0-9._-]+)/exposure)", [this](const httplib::Request& req, httplib::Response& res) {
+      if (!caller(req, res)) return;
+      const std::string name = req.get_param_value("name");
+      std::filesystem::path path;
+      if (grpc::Status g = book.resultPath(req.matches[1], name, &path); !g.ok()) return error(res, 404, g.error_message());
+      if (!(name.size() > 4 && name.compare(name.size() - 4, 4, ".exr") == 0)) return error(res, 415, "an exposure is computed from an EXR");
+      try {
+        const Image im = readImage(path, false);
+        std::vector<float> lum;
+        lum.reserve(size_t(im.width()) * size_t(im.height()));
+        const int c = im.channels();
+        for (size_t i = 0; i + size_t(c) <= im.data().size(); i += size_t(c)) {
+          const float* px = &im.data()[i];
+          const float y = c >= 3 ? 0.2126f * px[0] + 0.7152f * px[1] + 0.0722f * px[2] : px[0];
+          if (std::isfinite(y)) lum.push_back(y);
+        }
+        double p99 = 0;
+        if (!lum.empty()) {
+          auto at = lum.begin() + std::ptrdiff_t(double(lum.size() - 1) * 0.99);
+          std::nth_element(lum.begin(), at, lum.end());
+          p99 = *at;
+        }
+        const double ev = p99 > 0 ? std::clamp(-std::log2(p99), -16.0, 16.0) : 0.0;
+        res.set_content(dump(json{{"ev", ev}, {"percentile", 99}, {"luminance", p99}}), kJson);
+      } catch (const std::exception& e) {
+        return error(res, 500, std::string("cannot read '") + name.substr(0, 256) + "': " + e.what());
+      }
+    });
     // A result file as it is (`file`), or as a PNG the browser can show (`image`: PNGs as they
-    // are, EXR textures and renders converted, clamped and sRGB-encoded).
+    // are, EXR textures and renders converted at `exposure` stops (default 0), clamped and
+    // sRGB-encoded).
     auto file = [this](bool asImage) {
       return [this, asImage](const httplib::Request& req, httplib::Response& res) {
         if (!caller(req, res)) return;
         const std::string name = req.get_param_value("name");
+        double ev = 0;
+        if (req.has_param("exposure")) {
+          const std::string text = req.get_param_value("exposure");
+          char* end = nullptr;
+          ev = std::strtod(text.c_str(), &end);
+          if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(ev) || std::abs(ev) > 32)
+            return error(res, 400, "exposure: a number of stops in [-32, 32]");
+        }
         std::filesystem::path path;
         if (grpc::Status g = book.resultPath(req.matches[1], name, &path); !g.ok()) return error(res, 404, g.error_message());
         const bool png = contentType(name) == "image/png";
@@ -434,7 +462,12 @@ struct Dashboard::Impl {
               std::string path;
               ~Remove() { std::filesystem::remove(path); }
             } remove{tmp};
-            writeImage(tmp, readImage(path, false));
+            Image im = readImage(path, false);
+            if (ev != 0) {
+              const float scale = float(std::exp2(ev));
+              for (float& v : im.data()) v *= scale;
+            }
+            writeImage(tmp, im);
             res.set_content(readFile(tmp), "image/png");
           } else {
             res.set_content(readFile(path), contentType(name));
@@ -450,16 +483,7 @@ struct Dashboard::Impl {
     s.Get("/api/workers", [this](const httplib::Request& req, httplib::Response& res) {
       if (!caller(req, res)) return;
       json workers = json::array();
-      for (const auto& w : scheduler.workers())
-        workers.push_back(json{{"name", w.name()},
-                               {"threads", w.capacity()},
-                               {"busy", w.busy()},
-                               {"leaving", w.leaving()},
-                               {"shards", w.shards()},
-                               {"jobs", w.jobs()},
-                               {"job_ids", std::vector<std::string>(w.job_ids().begin(), w.job_ids().end())},
-                               {"current_job", w.current_job()},
-                               {"seconds_since_heard", w.seconds_since_heard()}});
+      for (const auto& w : scheduler.workers()) workers.push_back(messageJson(w));
       res.set_content(dump(json{{"workers", std::move(workers)}}), kJson);
     });
 

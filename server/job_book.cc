@@ -38,6 +38,10 @@ void JobBook::load() {
     j.rec = rec;
     j.events = store_.loadEvents(rec.job_id());
     j.nextSeq = j.events.empty() ? 1 : j.events.back().sequence() + 1;
+    // The method, as the runner names it when the job starts: a job that ended before this
+    // restart never starts again, and keeps it.
+    const v1::GradientMethod m = rec.spec().optimization().method();
+    j.method = m == v1::METHOD_PT ? "pt" : m == v1::METHOD_RIS ? "ris" : "restir";
     for (const auto& e : j.events)
       if (e.has_step()) {
         j.step = e.step().step();

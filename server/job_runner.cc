@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <optional>
+#include <iomanip>
 #include <sstream>
 
 #include "core/error.h"
@@ -58,14 +59,17 @@ Image fromWire(const v1::FloatImage& fi, bool* ok) {
 }
 
 // The snapshots a run wrote so far (they survive restarts), as result names.
+// The files under the results' sub-folders: snapshots/ and truth/ (a synthetic job's truth).
 std::vector<std::string> snapshotFiles(const std::filesystem::path& resultsDir) {
   std::vector<std::string> files;
-  std::error_code ec;
-  const auto root = resultsDir / "snapshots";
-  if (!std::filesystem::is_directory(root, ec)) return files;
-  for (auto it = std::filesystem::recursive_directory_iterator(root, ec); !ec && it != std::filesystem::recursive_directory_iterator();
-       it.increment(ec))
-    if (it->is_regular_file(ec)) files.push_back(std::filesystem::relative(it->path(), resultsDir, ec).generic_string());
+  for (const char* sub : {"snapshots", "truth"}) {
+    std::error_code ec;
+    const auto root = resultsDir / sub;
+    if (!std::filesystem::is_directory(root, ec)) continue;
+    for (auto it = std::filesystem::recursive_directory_iterator(root, ec); !ec && it != std::filesystem::recursive_directory_iterator();
+         it.increment(ec))
+      if (it->is_regular_file(ec)) files.push_back(std::filesystem::relative(it->path(), resultsDir, ec).generic_string());
+  }
   std::sort(files.begin(), files.end());
   return files;
 }
@@ -162,6 +166,19 @@ void JobRunner::runSteps(Context& c) {
   }
   if (c.theta.size() != p.params.size()) throw JobFailed{"checkpoint does not match the job's parameters"};
   book_.started(id, step, uint64_t(p.steps), method);
+  if (p.groundTruthKnown() && !saved) {
+    // A synthetic job's truth among its results (truth/parameters.json, textures as EXR): the
+    // dashboard shows each texture beside it while the job runs.
+    try {
+      const auto dir = store_.resultsDir(id) / "truth";
+      std::filesystem::create_directories(dir);
+      std::vector<std::string> files;
+      for (const auto& f : writeParameters(dir, p.params, p.truth, *p.scene)) files.push_back("truth/" + f);
+      book_.addResults(id, files);
+    } catch (const std::exception& e) {
+      book_.log(id, std::string("cannot write the truth among the results: ") + e.what());
+    }
+  }
   {
     std::ostringstream msg;
     if (saved)
@@ -206,7 +223,21 @@ void JobRunner::runSteps(Context& c) {
     for (size_t s = 0; s < p.shards.size(); ++s)
       if (!shardSeen[s] && !shardRequest(p, ev, s).views.empty()) shardSeen[s] = true;
   };
+  // The first evaluation a worker gets for a shard builds its session (the scene, the targets,
+  // the reservoirs' burn-in): say so before the wait, and how long it took after, so no client
+  // sits through it without a word.
+  bool sessionsBuilt = false;
   auto evaluateOnWorkers = [&](const Evaluation& e, const std::vector<float>& at) {
+    if (!sessionsBuilt) {
+      std::ostringstream msg;
+      msg << "preparing: the workers build each shard's session (" << p.shards.size() << " shards: the scene, ";
+      if (p.givenTargets.empty())
+        msg << "the targets rendered at " << p.targetSpp << " samples per pixel";
+      else
+        msg << "the uploaded targets";
+      msg << (p.burnIn > 0 ? ", then " + std::to_string(p.burnIn) + " burn-in steps" : std::string()) << "); step 1 follows";
+      book_.log(id, msg.str());
+    }
     for (; seenBefore < e.counter; ++seenBefore) markSeen(evaluationAt(p, seenBefore));
     std::vector<std::optional<v1::Task>> tasks(p.shards.size());
     for (size_t s = 0; s < p.shards.size(); ++s) {
@@ -225,6 +256,16 @@ void JobRunner::runSteps(Context& c) {
     const Stopwatch stepClock;
     auto results = scheduler_.run(id, tasks);
     wall = stepClock.seconds();
+    if (!sessionsBuilt) {
+      sessionsBuilt = true;
+      double session = 0;
+      for (const auto& r : results)
+        if (r) session = std::max(session, r->seconds_session());
+      std::ostringstream msg;
+      msg << "sessions ready: " << std::fixed << std::setprecision(1) << wall << " s (the slowest shard's scene and targets "
+          << session << " s)";
+      book_.log(id, msg.str());
+    }
     slowest = 0;
     std::vector<std::optional<GradientResult>> out(results.size());
     for (size_t s = 0; s < results.size(); ++s) {
@@ -250,7 +291,8 @@ void JobRunner::runSteps(Context& c) {
     }
     if (burnIn) {
       const uint64_t k = loop.state().counter;
-      if (k == 1 || k == uint64_t(p.burnIn))
+      const uint64_t every = std::max<uint64_t>(1, uint64_t(p.burnIn) / 10);  // at most about ten lines
+      if (k == 1 || k % every == 0 || k == uint64_t(p.burnIn))
         book_.log(id, "burn-in " + std::to_string(k) + "/" + std::to_string(p.burnIn) + " (render-only steps that fill the reservoirs)");
       continue;
     }
@@ -387,6 +429,10 @@ void JobRunner::writeSnapshot(Context& c, uint64_t step) {
       try {
         writeImage(dir / name, im);
         files.push_back("snapshots/" + name);
+        // The radiance too, for the dashboard's exposure control (an HDR scene's PNG is clipped).
+        const std::string hdr = name.substr(0, name.size() - 4) + ".exr";
+        writeImage(dir / hdr, im);
+        files.push_back("snapshots/" + hdr);
       } catch (const std::exception& e) {
         book_.log(c.id, "snapshot at step " + std::to_string(step) + ": " + e.what());
       }

@@ -1,4 +1,4 @@
-// Local worker processes for the embedded server of `invr run` and `invr bench service`.
+// Local worker processes for the embedded server of `invr run` and `invr-lab bench service`.
 #pragma once
 
 #include <signal.h>
@@ -23,16 +23,16 @@ struct LocalWorkers {
   ~LocalWorkers() { stop(); }
   void start(int n, int threads, int port, const std::filesystem::path& logDir) {
     std::string exe = (selfDir() / "invr-worker").string();
-    if (!std::filesystem::exists(exe)) throw ExitError(exit_code::kInternal, "cannot find invr-worker next to invr (" + exe + ")");
+    if (!std::filesystem::exists(exe)) throw ExitError(exit_code::kInternal, "cannot find invr-worker next to this executable (" + exe + ")");
     for (int i = 0; i < n; ++i)
       spawnLogged({exe, "--server", "127.0.0.1:" + std::to_string(port), "--threads", std::to_string(threads), "--parent-pid",
                    std::to_string(getpid()), "--name", "local-" + std::to_string(i + 1)},
                   logDir / ("worker-" + std::to_string(i + 1) + ".log"));
   }
-  // `invr bench fake-worker` processes (canned answers, no rendering) for `invr bench service
+  // `invr-lab bench fake-worker` processes (canned answers, no rendering) for `invr-lab bench service
   // --fake-workers`; each writes its message byte counts to logDir/fake-<i>.stats when it ends.
   void startFake(int n, int port, double seconds, const std::filesystem::path& logDir) {
-    std::string exe = (selfDir() / "invr").string();
+    std::string exe = (selfDir() / "invr-lab").string();
     for (int i = 0; i < n; ++i) {
       std::string id = std::to_string(i + 1);
       spawnLogged({exe, "bench", "fake-worker", "--server", "127.0.0.1:" + std::to_string(port), "--seconds", std::to_string(seconds),

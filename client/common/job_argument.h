@@ -1,7 +1,8 @@
 // The scene/job argument of render, optimize, run, submit, plan and import: a zoo scene name, a job
 // file (.json, whose relative asset paths resolve against its folder, and whose scene may be a
 // Mitsuba file: {"mitsuba": {"path": ...}}), `-` (a job's JSON on standard input, relative paths
-// from the working directory) or a Mitsuba 3 scene file (.xml), imported on the spot.
+// from the working directory) or a Mitsuba 3 scene file (.xml), imported on the spot. The
+// resolution itself is core's (core/job/job_source.h), which the server's ResolveJob shares.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/job/job_source.h"  // applySets, rebaseAssetPaths, importMitsubaIntoJob
 #include "core/scene/scene_builder.h"
 #include "invr/v1/job.pb.h"
 
@@ -26,11 +28,6 @@ struct SceneArgs {
 };
 void addSceneArgs(CLI::App* cmd, SceneArgs& a, bool withParams);
 
-// Applies `--set` overrides: FIELD.PATH=VALUE with the job JSON's field names, list elements by
-// index (optimization.parameters[0].learning_rate=0.05 or ...parameters.0...), VALUE as JSON
-// (numbers, true, [..], {..}) or else a string. Errors are the job parser's, naming the field.
-void applySets(invr::v1::JobSpec& job, const std::vector<std::string>& sets);
-
 // Loads the job an argument names (setting assets.baseDir). A Mitsuba scene, directly or through
 // a job file, becomes an inline scene; its import warnings go to stderr.
 // `imported` (optional) says whether the scene came from a Mitsuba file.
@@ -41,13 +38,5 @@ invr::v1::JobSpec jobFromArgument(const std::string& arg, AssetResolver& assets,
 // the error says so. For a Mitsuba scene the optimisation takes the scene's depth, with method pt
 // where paths are longer than direct illumination.
 invr::v1::JobSpec optimizationJobFromArgument(const std::string& arg, AssetResolver& assets, const SceneArgs& sceneArgs);
-
-// Rewrites the job's relative asset paths (relative to fromDir) relative to toDir, or absolute
-// where toDir is far from them.
-void rebaseAssetPaths(invr::v1::JobSpec& job, const std::filesystem::path& fromDir, const std::filesystem::path& toDir);
-
-// Imports job.mitsuba into job.scene (asset paths relative to baseDir); render settings the job
-// leaves unset come from the scene file. Warnings are appended to `warnings`.
-void importMitsubaIntoJob(invr::v1::JobSpec& job, const std::filesystem::path& baseDir, std::vector<std::string>& warnings);
 
 }  // namespace invr::cli

@@ -4,9 +4,15 @@
 
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
 #include <thread>
 
 #include "client/common/exit_codes.h"
+#include "client/common/job_argument.h"
+#include "core/io/mitsuba_import.h"
 #include "core/diff/gradient_stats.h"
 #include "core/error.h"
 #include "core/io/job_io.h"
@@ -99,6 +105,91 @@ v1::GetJobRequest jobRequest(const std::string& id) {
 }
 
 }  // namespace
+
+namespace {
+
+// A job's JSON with every file it names by an absolute path uploaded and named by content: the
+// server reads no file of this machine. The text as it was when nothing changed (its line numbers
+// stay those of the user's file), or when it does not parse (the server names the error).
+std::string absolutePathsByContent(const std::string& text, ServiceClient& c) {
+  nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
+  if (doc.is_discarded()) return text;
+  bool changed = false;
+  std::function<void(nlohmann::json&)> walk = [&](nlohmann::json& node) {
+    if (node.is_object()) {
+      for (auto& [key, v] : node.items()) {
+        if (key != "mitsuba" && v.is_object() && v.size() == 1 && v.contains("path") && v["path"].is_string() &&
+            std::filesystem::path(v["path"].get<std::string>()).is_absolute()) {
+          const std::filesystem::path file = v["path"].get<std::string>();
+          if (!std::filesystem::exists(file)) throw InputError(key + ".path: file '" + file.string() + "' not found");
+          v = nlohmann::json{{"sha256", c.upload(file)}};
+          changed = true;
+        } else {
+          walk(v);
+        }
+      }
+    } else if (node.is_array()) {
+      for (auto& v : node) walk(v);
+    }
+  };
+  walk(doc);
+  return changed ? doc.dump() : text;
+}
+
+}  // namespace
+
+v1::JobSpec ServiceClient::resolve(const std::string& arg, const std::vector<std::string>& defines, const std::vector<std::string>& params,
+                                   const std::vector<std::string>& sets, bool forOptimization) {
+  namespace fs = std::filesystem;
+  v1::ResolveJobRequest req;
+  fs::path base = ".";
+  auto readText = [](std::istream& in) {
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  // A job's JSON is checked here first (the same parser as the server's): a mistake in it is
+  // named, by line and column, without a server.
+  if (arg == "-") {  // the job's JSON on standard input; its relative paths from the working directory
+    const std::string text = readText(std::cin);
+    parseJobJson(text, "<stdin>");
+    req.set_job_json(absolutePathsByContent(text, *this));
+    req.set_name("<stdin>");
+  } else if (isJobFile(arg)) {
+    if (!fs::exists(arg)) throw InputError("job file '" + arg + "': not found");
+    std::ifstream in(arg);
+    if (!in) throw InputError("job file '" + arg + "': cannot open");
+    base = fs::path(arg).has_parent_path() ? fs::path(arg).parent_path() : fs::path(".");
+    const std::string text = readText(in);
+    parseJobJson(text, arg);
+    req.set_job_json(absolutePathsByContent(text, *this));
+    req.set_name(arg);
+  } else if (isMitsubaSceneFile(arg)) {
+    if (!fs::exists(arg)) throw InputError("Mitsuba scene '" + arg + "': not found");
+    base = fs::path(arg).has_parent_path() ? fs::path(arg).parent_path() : fs::path(".");
+    const std::string key = fs::path(arg).filename().string();
+    (*req.mutable_files())[key] = upload(arg);
+    req.set_mitsuba_xml(key);
+  } else {
+    req.set_zoo(arg);
+  }
+  for (const auto& d : defines) req.add_defines(d);
+  for (const auto& p : params) req.add_params(p);
+  for (const auto& s : sets) req.add_sets(s);
+  req.set_for_optimization(forOptimization);
+  for (int round = 0; round < 64; ++round) {  // a Mitsuba <include> names its files once it is there
+    const auto resp = unary<v1::ResolveJobResponse>(*stub_, security_, &v1::InvrService::Stub::ResolveJob, req, "resolve '" + arg + "'");
+    for (const auto& w : resp.warnings()) std::cerr << "warning: " << w << "\n";
+    if (resp.missing_files_size() == 0) return resp.spec();
+    for (const auto& name : resp.missing_files()) {
+      if (req.files().count(name)) throw ExitError(exit_code::kInternal, "the server asks again for '" + name + "', which was uploaded");
+      const fs::path f = base / name;
+      if (!fs::exists(f)) throw InputError("'" + arg + "' names '" + name + "', which is not at '" + f.string() + "'");
+      (*req.mutable_files())[name] = upload(f);
+    }
+  }
+  throw ExitError(exit_code::kInternal, "'" + arg + "': its files were still incomplete after 64 rounds of uploads");
+}
 
 v1::SubmitJobResponse ServiceClient::submit(const v1::JobSpec& job, const std::string& requestId) {
   v1::SubmitJobRequest req;

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "invr/v1/service.grpc.pb.h"
 #include "proto/wire/security.h"
@@ -23,6 +24,12 @@ class ServiceClient {
   // to its sha256, so the job means the same thing on the server.
   void uploadAssets(invr::v1::JobSpec& job, const std::filesystem::path& baseDir);
   std::string upload(const std::filesystem::path& file);
+
+  // The job a CLI argument names (zoo name, job file, `-`, Mitsuba scene) with its overrides,
+  // resolved by the server (ResolveJob, the code `invr` runs locally): the files it names are
+  // uploaded as the server asks for them, and the spec names them by sha256.
+  invr::v1::JobSpec resolve(const std::string& arg, const std::vector<std::string>& defines, const std::vector<std::string>& params,
+                            const std::vector<std::string>& sets, bool forOptimization);
 
   invr::v1::SubmitJobResponse submit(const invr::v1::JobSpec& job, const std::string& requestId);
   invr::v1::JobStatus get(const std::string& job);

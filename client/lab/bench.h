@@ -1,11 +1,11 @@
-// The gradient-quality benchmarks as functions, shared by `invr bench ...` and `invr eval`.
+// The gradient-quality benchmarks as functions, shared by `invr-lab bench ...` and `invr-lab eval`.
 // Each returns its report (figures named as in --json).
 #pragma once
 
 #include <string>
 #include <vector>
 
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 
 namespace invr::cli {
 

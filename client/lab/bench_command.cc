@@ -1,4 +1,4 @@
-// invr bench ...: benchmarks that print their figures (ratios measured in one run).
+// invr-lab bench ...: benchmarks that print their figures (ratios measured in one run).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -6,7 +6,7 @@
 #include <iostream>
 #include <memory>
 
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/lab/embree_replay.h"
 #include "client/lab/lab_commands.h"
 #include "core/error.h"

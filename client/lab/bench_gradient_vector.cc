@@ -1,4 +1,4 @@
-// invr bench gradient-vector: a job's loss gradient at its starting point, as a vector with a
+// invr-lab bench gradient-vector: a job's loss gradient at its starting point, as a vector with a
 // standard error per component: the mean of independent evaluations per method (PT, RIS,
 // ReSTIR after its burn-in) and, optionally, central finite differences of invr's own forward
 // renders. deploy/peers.sh compares these with Mitsuba 3's gradient of the same scene and loss.
@@ -10,7 +10,7 @@
 #include <random>
 
 #include "client/common/job_argument.h"
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/lab/lab_commands.h"
 #include "core/diff/gradient_engine.h"
 #include "core/error.h"

@@ -1,4 +1,4 @@
-// invr bench pixel-variance: gradient variance at a fixed theta for each pixel sampler at equal
+// invr-lab bench pixel-variance: gradient variance at a fixed theta for each pixel sampler at equal
 // path budget (Yan et al. 2025, Fig. 3): the scene's built-in job, `--reps` independent gradient
 // evaluations per sampler, one session per sampler so stage-1 maps are refreshed every
 // `refresh` steps as in an optimisation. Variance = sum over parameter components of the

@@ -1,4 +1,4 @@
-// invr bench sampler: how long the forward renderer needs to reach a given error with independent
+// invr-lab bench sampler: how long the forward renderer needs to reach a given error with independent
 // samples and with Owen-scrambled Sobol points (core/math/rng.h), at each path depth asked for.
 //
 // Error: RMSE against a converged reference (two independent renders at half the reference's spp;
@@ -15,7 +15,7 @@
 #include <map>
 
 #include "client/lab/lab_commands.h"
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "core/error.h"
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"

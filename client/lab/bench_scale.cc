@@ -1,4 +1,4 @@
-// invr bench scale: how a gradient step's time and a worker's memory grow with film pixels,
+// invr-lab bench scale: how a gradient step's time and a worker's memory grow with film pixels,
 // parameters, triangles and views (issue 42), for PT, RIS and ReSTIR. Every point is one job (a
 // reduced oxalis-hd, with one size changed) run in a child process of its own, so that its peak
 // resident memory is its own; each series gets its fitted growth exponent (the slope of log time
@@ -15,7 +15,7 @@
 #include <sstream>
 
 #include "client/common/process.h"
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/lab/lab_commands.h"
 #include "client/lab/step_engine.h"
 #include "core/error.h"

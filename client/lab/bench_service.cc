@@ -1,4 +1,4 @@
-// invr bench service: what the service costs and what a second worker buys.
+// invr-lab bench service: what the service costs and what a second worker buys.
 //   overhead_one_worker: per-step time of a job on the service with one worker, against the same
 //     job in process through the GradientEngine (same threads), minus 1. Target <= 0.05.
 //   speedup_two_workers: steps/s with two single-threaded workers over one, on a compute-bound
@@ -21,7 +21,7 @@
 #include <thread>
 
 #include "proto/wire/cli_checks.h"
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/lab/lab_commands.h"
 #include "client/common/embedded.h"
 #include "client/common/service_client.h"

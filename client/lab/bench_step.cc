@@ -1,4 +1,4 @@
-// invr bench step: one gradient step against the time bare Embree needs for the rays that step
+// invr-lab bench step: one gradient step against the time bare Embree needs for the rays that step
 // traced (the ray-tracing bound of issue 41). The step's rays are logged through every Embree query
 // (core/geometry/ray_log.h), split by kind and BVH, and replayed in each of Embree's modes; the
 // bound is the sum over kinds of the fastest mode. The step itself is timed without the log, on
@@ -8,7 +8,7 @@
 #include <map>
 #include <memory>
 
-#include "client/lab/bench_report.h"
+#include "client/common/bench_report.h"
 #include "client/lab/embree_replay.h"
 #include "client/lab/lab_commands.h"
 #include "client/lab/step_engine.h"

@@ -1,4 +1,4 @@
-// invr bench variance: the figures of Yan et al. 2024 on the zoo's variance-aware jobs.
+// invr-lab bench variance: the figures of Yan et al. 2024 on the zoo's variance-aware jobs.
 //   rings     dV/d roughness, unbiased against detached at equal time, against a long
 //             central-difference reference (common random numbers, h checked against h/2);
 //             and the K sweep of the variance-aware reconstruction (Fig. 6).

@@ -1,6 +1,6 @@
 // Replays recorded rays through bare Embree in each of its modes (single rays, coherent packets of
 // 4/8/16, rtcIntersect1M streams), for the benchmarks that measure the renderer against the time
-// Embree alone needs for the same rays (`invr bench rays`, `invr bench step`).
+// Embree alone needs for the same rays (`invr-lab bench rays`, `invr-lab bench step`).
 #pragma once
 
 #include <cstdint>

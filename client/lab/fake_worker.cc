@@ -1,6 +1,6 @@
-// invr bench fake-worker: a worker that renders nothing. It speaks the worker protocol (hello,
+// invr-lab bench fake-worker: a worker that renders nothing. It speaks the worker protocol (hello,
 // heartbeats, results) and answers each task after `--seconds` with canned data of the job's
-// size: a zero gradient as long as θ, or black final images of the film's size. `invr bench
+// size: a zero gradient as long as θ, or black final images of the film's size. `invr-lab bench
 // service --fake-workers N` starts N of them to measure the server's own cost per step with many
 // workers, without the machine's cores going to rendering.
 #include <grpcpp/grpcpp.h>

@@ -1,4 +1,4 @@
-// The lab's commands (`invr bench ...`, `invr eval`): benchmarks and the speed-against-accuracy
+// The lab's commands (`invr-lab bench ...`, `invr-lab eval`): benchmarks and the speed-against-accuracy
 // suite, registered on the CLI by client/main.cc. Each callback runs its command and sets `exitCode`.
 #pragma once
 

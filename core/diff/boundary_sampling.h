@@ -26,7 +26,7 @@ struct FilmCrossing {
 // nearly coplanar facets) their light-sampling noise cancels in the difference instead of adding.
 // With a fork per side, the crease samples of a fine flat mesh (82K triangles) carried jumps of
 // 0.2-1 where the true jump is ~0.01, and the primary term's noise was ~35x the whole gradient
-// (docs/differentiable-rendering.md, "A fine mesh's pose"). ReSTIR reads x's pixel's reservoirs.
+// (docs/shapes.md, "A fine mesh's pose"). ReSTIR reads x's pixel's reservoirs.
 FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator, const Camera& cam, FilmPoint x, Vec2 n, double eps,
                           const Sampler& sampler, SampleCounters& counters);
 

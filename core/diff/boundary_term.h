@@ -55,7 +55,7 @@ struct BoundaryOptions {
   AreaSampling areaSampling = AreaSampling::EdgeFirst;
   bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
   // restir: previous-step edge reservoirs merged per sample (Alg. 6). 0: they steer edge importance
-  // only; merging measured no gain (docs/differentiable-rendering.md).
+  // only; merging measured no gain (docs/shapes.md).
   int edgeNeighbours = 0;
   // Accept moving shapes whose discontinuities no term samples (contact curves with other surfaces,
   // hard spot-light cones on them): the gradient is then biased, and the plan says so.

@@ -273,7 +273,7 @@ void GradientEngine::boundaryPasses(Step& s) {
   const GradientRequest& req = s.req;
   if (boundaryTerms_.empty() || req.renderOnly) return;
   Stopwatch clock;
-  const RayLog::BoundaryPhase boundaryRays;  // `invr bench step` counts these rays apart
+  const RayLog::BoundaryPhase boundaryRays;  // `invr-lab bench step` counts these rays apart
   v1::GradientStats& st = s.out.stats;
   const int samples = opt_.boundary.samplesFor(scene_.width, scene_.height);
   const BoundaryStep setup{scene_, params_, topology_, opt_, s.session, req.views, req.allSessionViews};

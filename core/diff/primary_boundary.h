@@ -43,7 +43,7 @@ class PrimaryBoundary final : public BoundaryTerm {
   // between two flat faces, |n0 - n1|, the turn of the shading normal across it, which bounds a
   // diffuse jump (the cosine changes by at most that), clamped to [kMinCreaseWeight, 1]. On a fine
   // flat mesh most candidate length is creases between nearly coplanar facets; picked by length
-  // alone, fewer samples are left for the silhouettes (docs/differentiable-rendering.md, "A fine
+  // alone, fewer samples are left for the silhouettes (docs/shapes.md, "A fine
   // mesh's pose": 1.4-1.9x lower standard error for ReSTIR there).
   static float creaseJumpBound(Vec3 n0, Vec3 n1);
   static constexpr float kMinCreaseWeight = 1e-3f;

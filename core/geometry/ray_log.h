@@ -1,4 +1,4 @@
-// An optional log of every ray traced through any EmbreeScene, for `invr bench step`, which
+// An optional log of every ray traced through any EmbreeScene, for `invr-lab bench step`, which
 // replays a gradient step's rays through bare Embree to measure the step against its ray-tracing
 // bound. Off unless a RayLog is active (alive and not stopped): tracing then pays one relaxed
 // atomic load per ray.

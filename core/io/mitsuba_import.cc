@@ -284,6 +284,10 @@ class Importer {
     std::string file = n.attribute("filename").value();
     if (file.empty()) fail(n, "<include> needs a filename");
     fs::path p = resolvePath(n, file);
+    if (opt_.missingFiles && !fs::exists(p)) {
+      recordMissing(p);
+      return;
+    }
     for (const auto& q : includeStack_)
       if (fs::weakly_canonical(q) == fs::weakly_canonical(p)) fail(n, "includes '" + file + "' recursively");
     if (includeStack_.size() > 16) fail(n, "includes nested more than 16 deep");
@@ -302,6 +306,13 @@ class Importer {
     includeStack_.pop_back();
   }
 
+  void recordMissing(const fs::path& p) const {
+    const fs::path rootDir = sources_.begin() != sources_.end() ? rootSource().dir : fs::path(".");
+    fs::path rel = fs::absolute(p).lexically_normal().lexically_relative(fs::absolute(rootDir).lexically_normal());
+    const std::string name = rel.empty() ? p.generic_string() : rel.generic_string();
+    auto& list = *opt_.missingFiles;
+    if (std::find(list.begin(), list.end(), name) == list.end()) list.push_back(name);
+  }
   fs::path resolvePath(pugi::xml_node n, const std::string& file) const {
     fs::path p(file);
     if (p.is_absolute()) return p;
@@ -310,7 +321,10 @@ class Importer {
   // An asset path as the job stores it: relative to the root file's folder where possible.
   std::string assetPath(pugi::xml_node n, const std::string& file) const {
     fs::path p = resolvePath(n, file);
-    if (!fs::exists(p)) fail(n, "file '" + file + "' not found (looked for '" + p.string() + "')");
+    if (!fs::exists(p)) {
+      if (!opt_.missingFiles) fail(n, "file '" + file + "' not found (looked for '" + p.string() + "')");
+      recordMissing(p);
+    }
     const fs::path rootDir = sources_.begin() != sources_.end() ? rootSource().dir : fs::path(".");
     if (fs::path(file).is_absolute()) return p.string();
     fs::path rel = fs::absolute(p).lexically_normal().lexically_relative(fs::absolute(rootDir).lexically_normal());

@@ -17,6 +17,11 @@ struct MitsubaImportOptions {
   std::map<std::string, std::string> defaults;
   int sphereRings = 64;  // analytic spheres become uv-sphere meshes of this many rings
   int diskSegments = 128;
+  // When set, a file the scene names (a mesh, a bitmap, an included file) that does not exist is
+  // listed here, relative to the scene file's folder as far as it lies below it, instead of
+  // failing; the import goes on without it (an included file's contents are then missing). The
+  // server's ResolveJob asks a client for these files this way.
+  std::vector<std::string>* missingFiles = nullptr;
 };
 
 struct MitsubaImport {

@@ -156,6 +156,22 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
            "would put every vertex of '" + ps.name() + "' at one point; start from another mesh with initial_mesh, or give every coordinate (" +
                std::to_string(s.size) + " values)");
     if (ps.has_initial()) std::fill(p.initial.begin() + s.offset, p.initial.begin() + s.offset + s.size, inBounds(field + ".initial", ps.initial()));
+    if (const int nt = ps.truth_values_size(); nt > 0) {
+      const std::string tf = field + ".truth_values";
+      if (o.targets_size() > 0) fail(tf, "the job's targets are uploaded images, whose truth is unknown: remove truth_values or the targets");
+      if (s.kind == ParamKind::LightLogits || s.kind == ParamKind::PixelLightLogits || s.kind == ParamKind::Survival)
+        fail(tf, "'" + s.name + "' changes the noise, never the image: it has no truth");
+      if (s.kind == ParamKind::ShapeVertices) fail(tf, "the truth of '" + s.name + "' is the shape's own mesh (start elsewhere with initial_mesh)");
+      if (nt != 1 && nt != s.channels && uint32_t(nt) != s.size)
+        fail(tf, "has " + std::to_string(nt) + " values; '" + s.name + "' takes 1, " + std::to_string(s.channels) + " (one per channel)" +
+                     (s.size != uint32_t(s.channels) ? " or " + std::to_string(s.size) + " (one per texel and channel)" : ""));
+      for (uint32_t k = 0; k < s.size; ++k) {
+        const int j = nt == 1 ? 0 : uint32_t(nt) == s.size ? int(k) : int(k % uint32_t(s.channels));
+        const double v = ps.truth_values(j);
+        if (!std::isfinite(v)) fail(tf + "[" + std::to_string(j) + "]", "must be a finite number");
+        p.truth[s.offset + k] = float(v);
+      }
+    }
     const int n = ps.initial_values_size();
     if (n == 0) continue;
     if (n != 1 && n != s.channels && uint32_t(n) != s.size)

@@ -1,4 +1,4 @@
-// Equal-time optimisation: the evaluation suite's and `invr bench reconstruct`'s loop. A method
+// Equal-time optimisation: the evaluation suite's and `invr-lab bench reconstruct`'s loop. A method
 // gets a wall-clock budget (its burn-in counts against it) and takes as many steps as fit; the
 // image error is measured at a few checkpoints with the clock stopped, so measuring costs no
 // method any of its budget.

@@ -29,6 +29,17 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
   v1::OptimizationSpec& o = *out.mutable_optimization();
   o.clear_parameters();
   const auto& slots = p.params.slots();
+  // Results of a synthetic job: the exported scene holds the optimised values, so the truth the
+  // original job's scene held goes into the job (truth_values): its targets are rendered from it
+  // and its parameter error measured against it, as in the run it continues. Shape parameters
+  // cannot carry theirs: their values are relative to the shape's geometry, which the export
+  // writes where the run left it (a recovered mesh, a recovered pose): such a job goes on against
+  // the run's target images instead, with no truth.
+  bool shapes = false;
+  for (const ParameterSlot& s : slots)
+    shapes = shapes || s.kind == ParamKind::ShapeTranslation || s.kind == ParamKind::ShapeRotation || s.kind == ParamKind::ShapeScale ||
+             s.kind == ParamKind::ShapeVertices;
+  const bool keepTruth = !asGiven && job.optimization().targets_size() == 0 && !shapes;
   for (int i = 0; i < job.optimization().parameters_size() && size_t(i) < slots.size(); ++i) {
     const ParameterSlot& s = slots[size_t(i)];
     v1::ParameterSpec ps = job.optimization().parameters(i);
@@ -48,8 +59,11 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
     ps.clear_initial();
     ps.clear_initial_values();
     ps.clear_initial_mesh();
+    ps.clear_truth_values();
     if (heldBySampling(s.kind))  // not part of the scene: the job carries them
       for (uint32_t k = 0; k < s.size; ++k) ps.add_initial_values(double(theta[s.offset + k]));
+    else if (keepTruth)
+      for (uint32_t k = 0; k < s.size; ++k) ps.add_truth_values(double(p.truth[s.offset + k]));
     *o.add_parameters() = std::move(ps);
   }
   if (asGiven) {
@@ -60,7 +74,11 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
   if (job.optimization().targets_size() > 0) {
     o.clear_targets();
     o.clear_target_masks();
-    notes.push_back("the job's target images are not among its results: give them again as optimization.targets to optimise further");
+    notes.push_back("the exported job has no truth (the run's targets were images): give them again as optimization.targets to optimise "
+                    "further; until then it renders its targets from the exported, optimised scene");
+  } else if (keepTruth) {
+    notes.push_back("the exported job keeps the run's truth (optimization.parameters[].truth_values): it starts at the optimised values, "
+                    "renders its targets from the truth and measures its parameter error against it, as the run did");
   } else {
     // Rendered targets: the results hold them for the first views. With all of them, the job
     // goes on against the same images; otherwise it would render new targets from the
@@ -68,6 +86,8 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
     const size_t views = p.scene->cameras.size();
     bool all = true;
     for (size_t v = 0; v < views; ++v) all = all && fs::exists(resultsDir / ("target_view" + std::to_string(v) + ".exr"));
+    notes.push_back("the exported job has no truth (shape parameters are relative to the shapes' geometry, which the export writes as "
+                    "recovered): it goes on against the run's target images");
     if (all) {
       const fs::path dir = xml.has_parent_path() ? xml.parent_path() : fs::path(".");
       fs::create_directories(dir / "targets");

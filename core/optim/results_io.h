@@ -1,6 +1,6 @@
 // Writing an optimisation's results: parameters as JSON (textures also as EXR images a person can
 // look at) and the convergence CSV. The one writer of both for `invr optimize`, the server's job
-// runner and `invr eval` (same files, columns and precision).
+// runner and `invr-lab eval` (same files, columns and precision).
 #pragma once
 
 #include <filesystem>

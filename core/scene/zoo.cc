@@ -5,6 +5,7 @@
 #include <functional>
 
 #include "core/error.h"
+#include "core/io/suggest.h"
 
 namespace invr {
 
@@ -249,7 +250,7 @@ v1::Scene tree() {
   m.quad("ground", "ground", {3, 3, 1}, kFaceUp, {0, 0, 0});
   // The tree's parts are flat-shaded (face_normals) and form the group "tree" (pivot: the foot of
   // the trunk), so that shape jobs can turn it (groups/tree/rotation): moving smooth-shaded meshes
-  // are refused (docs/differentiable-rendering.md).
+  // are refused (docs/shapes.md).
   auto* trunk = m.shape("trunk", "bark");
   trunk->mutable_cylinder()->set_capped(true);
   SceneMaker::place(trunk, {0.06, 0.06, 0.5}, {-90, 0, 0}, {0, 0.5, 0});
@@ -639,11 +640,14 @@ const std::vector<ZooEntry>& zooEntries() {
 
 v1::Scene zooScene(const std::string& name) {
   std::string known;
+  std::vector<std::string> names;
   for (const auto& d : zoo()) {
     if (d.entry.name == name) return d.build();
     known += (known.empty() ? "" : ", ") + d.entry.name;
+    names.push_back(d.entry.name);
   }
-  throw InputError("unknown scene '" + name + "' (zoo scenes: " + known + ")");
+  // "unknown scene 'cornel'; did you mean 'cornell'? (zoo scenes: ...)"
+  throw InputError("unknown scene '" + name + "'" + didYouMean(name, names) + " (zoo scenes: " + known + ")");
 }
 
 }  // namespace invr

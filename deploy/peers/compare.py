@@ -5,7 +5,7 @@ textures) and the job over it; both renderers read that file. Then
   forward   K renders per renderer at equal spp (different seeds); the two mean images compared
             per 8x8 block against the spread of the seeds (ratio 1 = agreement within noise);
   gradient  the loss gradient at the job's start with respect to its parameters: invr's PT, RIS
-            and ReSTIR (`invr bench gradient-vector`, independent evaluations, plus finite
+            and ReSTIR (`invr-lab bench gradient-vector`, independent evaluations, plus finite
             differences of invr's own renders) against Mitsuba's (llvm_ad_rgb, independent seeds
             for primal and adjoint), per component as a z-score;
   speed     the median time of one gradient step at equal spp on the same threads, Mitsuba's first
@@ -408,7 +408,7 @@ def compare(scene, a, work):
         extra = ["--param", f"shapes/{shape}/vertices=" + ",".join(f"{x:.7g}" for x in start.ravel())]
     # invr's gradients (and its targets, which Mitsuba's loss uses too).
     log(scene, "invr gradients")
-    vec = json.loads(run([a.invr, "bench", "gradient-vector", job, *extra, "--evaluations", str(a.evaluations), "--spp", str(a.spp),
+    vec = json.loads(run([a.invr_lab, "bench", "gradient-vector", job, *extra, "--evaluations", str(a.evaluations), "--spp", str(a.spp),
                           "--fd-evaluations", str(a.fd_evaluations), "--fd-scale", str(FD_SCALE.get(scene, 1.0)), "--targets-out", os.path.join(d, "targets"), "--per-evaluation",
                           "--json"]))
     json.dump(vec, open(os.path.join(d, "invr_gradient.json"), "w"))
@@ -541,7 +541,7 @@ def boundary_terms(scene, a, d, job, extra, mj):
         mj.integrator = keep
         out["mitsuba"][name] = {"gradient": g.mean(0).tolist(), "se": (g.std(0, ddof=1) / math.sqrt(n)).tolist()}
     for name, sets in (("all", []), ("no_primary", ["optimization.boundary.primary=false"]), ("no_secondary", ["optimization.boundary.secondary=false"])):
-        cmd = [a.invr, "bench", "gradient-vector", job, *extra, "--methods", "pt", "--evaluations", str(a.evaluations), "--spp", str(a.spp), "--json"]
+        cmd = [a.invr_lab, "bench", "gradient-vector", job, *extra, "--methods", "pt", "--evaluations", str(a.evaluations), "--spp", str(a.spp), "--json"]
         for x in sets:
             cmd += ["--set", x]
         v = json.loads(run(cmd))["methods"]["pt"]
@@ -664,6 +664,7 @@ def print_markdown(rep):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--invr", help="the invr executable")
+    ap.add_argument("--invr-lab", help="the invr-lab executable (default: invr-lab next to --invr)")
     ap.add_argument("--work", help="folder for the exported scenes and renders")
     ap.add_argument("--scenes", default=",".join(DEFAULT_SCENES))
     ap.add_argument("--spp", type=int, default=4, help="samples per pixel of each gradient pass, both renderers")
@@ -695,6 +696,8 @@ def main():
     dr.set_thread_count(a.threads)
     if not a.invr or not a.work:
         ap.error("--invr and --work are required")
+    if not a.invr_lab:
+        a.invr_lab = os.path.join(os.path.dirname(a.invr), "invr-lab")
     versions = {"mitsuba": mi.__version__, "drjit": dr.__version__, "variant": mi.variant(),
                 "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH", ""),
                 "invr": run([a.invr, "--version"]).strip()}

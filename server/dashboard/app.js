@@ -49,7 +49,11 @@ async function api(path, options) {
 }
 
 function jobHref(id) { return "#/job/" + encodeURIComponent(id); }
-function imageUrl(id, name) { return "/api/jobs/" + encodeURIComponent(id) + "/image?name=" + encodeURIComponent(name); }
+// An EXR is converted at `ev` stops of exposure (the page's control); PNGs are shown as they are.
+function imageUrl(id, name, ev) {
+  const url = "/api/jobs/" + encodeURIComponent(id) + "/image?name=" + encodeURIComponent(name);
+  return name.endsWith(".exr") && ev ? url + "&exposure=" + ev : url;
+}
 
 function setMain(...children) {
   const main = document.getElementById("main");
@@ -137,14 +141,14 @@ async function jobsPage(gen) {
     const { jobs } = await api("/api/jobs");
     if (!current(gen)) return;
     jobs.sort((a, b) => b.submitted_unix - a.submitted_unix || (a.job_id < b.job_id ? 1 : -1));
-    count.textContent = jobs.length + (jobs.length === 1 ? " job" : " jobs") + ", " + jobs.filter((j) => j.state === "running").length + " running";
+    count.textContent = jobs.length + (jobs.length === 1 ? " job" : " jobs") + ", " + jobs.filter((j) => j.state === "RUNNING").length + " running";
     body.replaceChildren(...jobs.map((j) => el("tr", { "data-job": j.job_id },
       el("td", {}, el("a", { href: jobHref(j.job_id), text: j.job_id })),
       el("td", { class: "name", text: j.name }),
-      el("td", { class: "state-" + j.state, text: j.state }),
+      el("td", { class: "state-" + j.state.toLowerCase(), text: j.state.toLowerCase() }),
       el("td", {}, el("progress", { max: Math.max(1, j.steps), value: j.step }), " " + j.step + " / " + j.steps),
       el("td", { class: "num", text: j.steps_per_second > 0 ? fmt(j.steps_per_second, 3) + "/s" : "–" }),
-      el("td", { class: "num", text: j.state === "running" ? duration(j.eta_seconds) : "–" }),
+      el("td", { class: "num", text: j.state === "RUNNING" ? duration(j.eta_seconds) : "–" }),
       el("td", { class: "num", text: j.priority }),
       el("td", { class: "num", text: j.workers }),
       el("td", { text: j.method }),
@@ -171,7 +175,7 @@ async function workersPage(gen) {
     count.textContent = workers.length + " connected, " + workers.filter((w) => w.busy).length + " busy";
     body.replaceChildren(...workers.map((w) => el("tr", {},
       el("td", { class: "name", text: w.name }),
-      el("td", { class: "num", text: w.threads }),
+      el("td", { class: "num", text: w.capacity }),
       el("td", { text: w.leaving ? "leaving" : w.busy ? "busy" : "idle" }),
       el("td", {}, w.current_job ? el("a", { href: jobHref(w.current_job), text: w.current_job }) : "–"),
       el("td", {}, w.job_ids.length ? w.job_ids.map((id, i) => [i ? ", " : "", el("a", { href: jobHref(id), text: id })]) : "–"),
@@ -183,9 +187,10 @@ async function workersPage(gen) {
   schedule(refresh, gen);
 }
 
-// The series a job's chart draws, each only when the job has it (positive values: log scale).
+// The series a job's chart draws, each only when the job has it. The axis is logarithmic: the
+// unbiased loss, which may be negative, is drawn as its absolute value (and says so).
 const SERIES = [
-  ["loss", "loss"],
+  ["loss", "|loss| (absolute value of the signed loss)"],
   ["image_loss", "image error (smoothed)"],
   ["param_error", "parameter error"],
   ["shape_error", "shape error"],
@@ -201,7 +206,7 @@ function makeChart(canvas, xTitle) {
       animation: false, parsing: false, normalized: true, maintainAspectRatio: false,
       interaction: { mode: "nearest", intersect: false },
       elements: { point: { radius: 0 }, line: { borderWidth: 1.5 } },
-      scales: { x: { type: "linear", title: { display: true, text: xTitle } }, y: { type: "logarithmic", title: { display: true, text: "error (log scale)" } } },
+      scales: { x: { type: "linear", title: { display: true, text: xTitle } }, y: { type: "logarithmic", title: { display: true, text: "error, |loss| (log scale)" } } },
       plugins: { legend: { position: "bottom" } },
     },
   });
@@ -226,13 +231,15 @@ class JobSeries {
       for (const e of r.events) {
         if (e.step) {
           for (const [key] of SERIES) {
-            const v = e.step[key];
+            const v = key === "loss" && typeof e.step[key] === "number" ? Math.abs(e.step[key]) : e.step[key];
             if (typeof v === "number" && v > 0) {
               (this.byTime[key] = this.byTime[key] || []).push({ x: e.step.seconds, y: v });
               (this.bySteps[key] = this.bySteps[key] || []).push({ x: e.step.step, y: v });
             }
           }
-          if (Object.keys(e.step.parameters).length) this.parameters = { step: e.step.step, values: e.step.parameters };
+          // StepProgress.parameters: [{name, values}], as every JSON of invr's messages has it.
+          if (e.step.parameters.length)
+            this.parameters = { step: e.step.step, values: Object.fromEntries(e.step.parameters.map((p) => [p.name, p.values])) };
         }
         if (e.message) {
           this.messages.push(e.message);
@@ -301,10 +308,34 @@ async function jobPage(id, compare, gen) {
   const views = el("div", { class: "views", id: "views" });
   const log = el("ul", { class: "log", id: "log" });
   const picker = el("select", { id: "compare" }, el("option", { value: "", text: "compare with another job…" }));
+  // Exposure in stops for every HDR view (target, snapshot or final render, and their difference):
+  // automatic from the first target's percentiles until the user moves it.
+  mine.exposure = { ev: 0, auto: true, computed: false };
+  const evInput = el("input", { type: "range", id: "exposure", min: "-16", max: "16", step: "0.5", value: "0" });
+  const evValue = el("span", { id: "exposure-value", text: "0" });
+  const evAuto = el("button", { type: "button", id: "exposure-auto", text: "auto" });
+  const setEv = (ev) => {
+    mine.exposure.ev = Math.round(ev * 2) / 2;
+    evInput.value = String(mine.exposure.ev);
+    evValue.textContent = (mine.exposure.ev > 0 ? "+" : "") + mine.exposure.ev + " stops" + (mine.exposure.auto ? " (auto)" : "");
+  };
+  mine.setExposure = setEv;
+  evInput.addEventListener("input", () => {
+    mine.exposure.auto = false;
+    setEv(Number(evInput.value));
+    refreshImages();
+  });
+  evAuto.addEventListener("click", () => {
+    mine.exposure.auto = true;
+    mine.exposure.computed = false;
+    refreshImages();
+  });
+  let refreshImages = () => {};
   setMain(title, summary,
     el("div", {}, picker),
     el("div", { class: "charts" }, el("div", { class: "chart" }, timeCanvas), el("div", { class: "chart" }, stepCanvas)),
-    el("h2", { text: "Views: target, latest snapshot, difference (×4)" }), views,
+    el("h2", { text: "Views: target, latest snapshot, difference (×4), at one exposure" }),
+    el("div", { class: "exposure" }, el("label", { for: "exposure", text: "Exposure " }), evInput, " ", evValue, " ", evAuto), views,
     el("h2", { text: "Parameters" }), el("table", { id: "parameters" }, el("thead", {}, el("tr", {}, el("th", { text: "Name" }), el("th", { text: "Values" }))), params),
     textures,
     el("h2", { text: "Log" }), log);
@@ -338,9 +369,9 @@ async function jobPage(id, compare, gen) {
     }
     title.textContent = (status.name || id) + " (" + id + ")";
     summary.replaceChildren(
-      ...[["state", status.state], ["step", status.step + " / " + status.steps], ["method", status.method],
+      ...[["state", status.state.toLowerCase()], ["step", status.step + " / " + status.steps], ["method", status.method],
         ["rate", status.steps_per_second > 0 ? fmt(status.steps_per_second, 3) + " steps/s" : "–"],
-        ["ETA", status.state === "running" ? duration(status.eta_seconds) : "–"], ["loss", fmt(status.loss)],
+        ["ETA", status.state === "RUNNING" ? duration(status.eta_seconds) : "–"], ["loss", fmt(status.loss)],
         ["parameter error", status.param_error >= 0 ? fmt(status.param_error) : "–"], ["time", duration(status.seconds)],
         ["workers", status.workers], ["submitted by", status.submitted_by || "–"]]
         .map(([k, v]) => el("span", {}, el("b", { text: k + ": " }), String(v))),
@@ -351,6 +382,16 @@ async function jobPage(id, compare, gen) {
       chart.canvas.dataset.points = String(chart.data.datasets.reduce((n, d) => n + d.data.length, 0));
     }
     const own = mine.series[0];
+    if (!own.parameters && finishedState(status.state) && status.results.includes("parameters.json") && !mine.finalParameters) {
+      // A finished job's values (its events may predate the parameters they carry): the results'.
+      const values = await api("/api/jobs/" + encodeURIComponent(id) + "/file?name=parameters.json").catch(() => null);
+      if (!current(gen)) return;
+      if (values) {
+        const scalars = Object.entries(values).filter(([, v]) => Array.isArray(v) || typeof v === "number");
+        mine.finalParameters = { step: status.step, values: Object.fromEntries(scalars.map(([k, v]) => [k, Array.isArray(v) ? v : [v]])) };
+      }
+    }
+    if (!own.parameters && mine.finalParameters) own.parameters = mine.finalParameters;
     if (own.parameters) {
       params.replaceChildren(...Object.entries(own.parameters.values).map(([name, values]) =>
         el("tr", {}, el("td", { text: name }), el("td", { class: "num", text: values.map((v) => fmt(v, 4)).join("  ") }))));
@@ -358,6 +399,7 @@ async function jobPage(id, compare, gen) {
       params.replaceChildren(el("tr", {}, el("td", { class: "muted", text: "no scalar or small parameters reported yet (textures are shown below)" }), el("td")));
     }
     log.replaceChildren(...own.messages.slice(-20).map((m) => el("li", { text: m })));
+    refreshImages = () => showImages(mine, status, views, textures, gen);
     await showImages(mine, status, views, textures, gen);
     if (current(gen)) stamp();
   };
@@ -367,11 +409,25 @@ async function jobPage(id, compare, gen) {
 
 async function showImages(mine, status, views, textures, gen) {
   const id = status.job_id;
-  const texKey = status.images.textures.join("\n");
+  // The automatic exposure: from the first view's target, once it exists (the user's choice stays).
+  const first = status.images.views.find((v) => v.target_hdr);
+  if (mine.exposure.auto && !mine.exposure.computed && first) {
+    const r = await api("/api/jobs/" + encodeURIComponent(id) + "/exposure?name=" + encodeURIComponent(first.target_hdr)).catch(() => null);
+    if (!current(gen)) return;
+    if (r) {
+      mine.exposure.computed = true;
+      mine.setExposure(r.ev);
+    }
+  }
+  const ev = mine.exposure.ev;
+  const texKey = JSON.stringify(status.images.textures);
   if (mine.shown.textures !== texKey) {
     mine.shown.textures = texKey;
-    textures.replaceChildren(...status.images.textures.map((name) =>
-      el("figure", {}, el("img", { src: imageUrl(id, name), alt: name }), el("figcaption", { text: name }))));
+    const when = finishedState(status.state) ? "result" : "step " + status.images.snapshot_step;
+    textures.replaceChildren(...status.images.textures.map((t) =>
+      el("div", { class: "texture" },
+        t.truth ? el("figure", {}, el("img", { src: imageUrl(id, t.truth), alt: t.parameter + " truth" }), el("figcaption", { text: t.parameter + " (truth)" })) : null,
+        el("figure", {}, el("img", { src: imageUrl(id, t.file), alt: t.parameter }), el("figcaption", { text: t.parameter + " (" + when + ")" })))));
   }
   if (!status.images.views.length && !views.children.length)
     views.replaceChildren(el("p", { class: "muted", text: "No snapshot yet: submit with --snapshot-every N to see the renders here while the job runs." }));
@@ -383,25 +439,27 @@ async function showImages(mine, status, views, textures, gen) {
       box = el("div", { class: "view", id: "view-" + v.view },
         el("figure", {}, el("img", { id: "target-view" + v.view, alt: "target" }), el("figcaption", { text: "target, view " + v.view })),
         el("figure", {}, el("img", { id: "snapshot-view" + v.view, alt: "snapshot" }), el("figcaption", { id: "snapshot-caption-view" + v.view })),
-        el("figure", {}, el("canvas", { id: "diff-view" + v.view }), el("figcaption", { text: "|target − snapshot| × 4" })));
+        el("figure", {}, el("canvas", { id: "diff-view" + v.view }), el("figcaption", { text: "|target − render| × 4, same exposure" })));
       views.append(box);
     }
     const isFinal = !!v.final && finishedState(status.state);
-    const latest = isFinal ? v.final : v.snapshot;
-    const key = (v.target || "") + "|" + (latest || "");
+    const latest = isFinal ? v.final_hdr || v.final : v.snapshot_hdr || v.snapshot;
+    const target = v.target_hdr || v.target;
+    const key = (target || "") + "|" + (latest || "") + "|" + ev;
     if (mine.shown["view" + v.view] === key) continue;
     const t = box.querySelector("#target-view" + v.view), s = box.querySelector("#snapshot-view" + v.view);
-    const [okT, okS] = await Promise.all([v.target ? loadImage(t, imageUrl(id, v.target)) : false, latest ? loadImage(s, imageUrl(id, latest)) : false]);
+    const [okT, okS] = await Promise.all([target ? loadImage(t, imageUrl(id, target, ev)) : false, latest ? loadImage(s, imageUrl(id, latest, ev)) : false]);
     if (!current(gen)) return;
     // Shown once both load; a failed load is tried again at the next poll.
-    if ((!v.target || okT) && (!latest || okS)) mine.shown["view" + v.view] = key;
+    if ((!target || okT) && (!latest || okS)) mine.shown["view" + v.view] = key;
     box.querySelector("#snapshot-caption-view" + v.view).textContent = !latest ? "no snapshot yet" : isFinal ? "final render" : "snapshot at step " + status.images.snapshot_step;
     if (latest) s.dataset.step = String(isFinal ? status.step : status.images.snapshot_step);
+    t.dataset.exposure = s.dataset.exposure = String(ev);
     if (okT && okS) difference(box.querySelector("#diff-view" + v.view), t, s);
   }
 }
 
-function finishedState(s) { return s === "succeeded" || s === "failed" || s === "cancelled"; }
+function finishedState(s) { return s === "SUCCEEDED" || s === "FAILED" || s === "CANCELLED"; }
 
 // ---------------------------------------------------------------- routing
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The evaluation suite's smoke run (CI): `invr eval --quick` must finish and write a complete
+# The evaluation suite's smoke run (CI): `invr-lab eval --quick` must finish and write a complete
 # summary (every scene and method with finite errors and steps) plus its charts and images.
 # The figures themselves are not judged here: one quick run on a shared machine is too noisy;
 # the stability tests in ctest assert the comparisons that must hold.
@@ -7,7 +7,7 @@ set -euo pipefail
 BIN="${1:-build/bin}"
 OUT="${2:-build/eval-quick}"
 rm -rf "$OUT"
-"$BIN/invr" eval --quick --out "$OUT"
+"$BIN/invr-lab" eval --quick --out "$OUT"
 /usr/bin/python3 - "$OUT" <<'PY'
 import json, math, os, sys
 out = sys.argv[1]

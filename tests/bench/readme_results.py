@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Prints the README's results table from a committed `invr eval` run (docs/results/summary.json),
+"""Prints the results table of docs/results/README.md from a committed `invr-lab eval` run (docs/results/summary.json),
 so every figure there is copied by a program, not by hand. Usage:
     /usr/bin/python3 tests/bench/readme_results.py [docs/results/summary.json]
 """
@@ -26,7 +26,7 @@ def main():
     path = sys.argv[1] if len(sys.argv) > 1 else "docs/results/summary.json"
     d = json.load(open(path))
     out = []
-    out.append(f"From [docs/results/summary.json](docs/results/summary.json) ({d['mode']} run of {d['date']}, "
+    out.append(f"From [docs/results/summary.json](summary.json) ({d['mode']} run of {d['date']}, "
                f"{d['machine']['cores']} cores). Parameter error: RMS over the last quarter of the budget; image error: "
                "per-pixel relative RMSE of renders at the result. Ratios are baseline / method: above 1, the method is "
                "closer to the truth. One run per method: ratios within about 1.2 of each other are ties.")

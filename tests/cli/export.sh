@@ -18,6 +18,11 @@ PY=/usr/bin/python3
 [ -s run/job.json ] || fail "the results have no job.json"
 "$BIN/invr" export run -o exp/scene.xml > export.log 2> export.err || fail "export: $(cat export.err)"
 grep -q "wrote .*scene.xml" export.log || fail "export said: $(cat export.log)"
+# The check command export prints runs as printed (issue 61), with invr from this build.
+check=$(sed -n 's/.*check with: invr //p' export.log)
+[ -n "$check" ] || fail "export printed no check command: $(cat export.log)"
+# shellcheck disable=SC2086
+"$BIN/invr" $check > check.log 2>&1 || fail "the printed check command failed: invr $check: $(tail -3 check.log)"
 [ -s exp/scene.json ] || fail "no job file beside the scene"
 ls exp/meshes/*.ply > /dev/null || fail "no meshes written"
 ls exp/textures/*.exr > /dev/null || fail "no textures written"
@@ -46,9 +51,23 @@ se = np.std(b1 - b2) / np.sqrt(b1.size)
 assert abs(a.mean() - b1.mean()) < 4 * se, f"means differ by {abs(a.mean() - b1.mean()):.4f}, standard error {se:.4f}"
 PYEOF
 
-# The job over it runs (its targets are the run's target images).
+# The job over it runs, and carries the run's truth (issue 61): it renders its targets from it and
+# starts at the run's final parameter error, not at 0 against the optimised values.
 grep -q '"mitsuba"' exp/scene.json || fail "the job does not name the scene"
-grep -q 'target_view0.exr' exp/scene.json || fail "the job does not carry the run's targets"
+grep -q '"truth_values"' exp/scene.json || fail "the job does not carry the run's truth: $(cat exp/scene.json)"
+if grep -q 'target_view0.exr' exp/scene.json; then fail "a job with its truth names the run's target images"; fi
+grep -q "keeps the run's truth" export.err || fail "export did not say which truth the job has: $(cat export.err)"
+"$BIN/invr" optimize exp/scene.json --steps 1 --final-spp 4 -o continued > continued.log 2>&1 || fail "optimize the exported job: $(tail -3 continued.log)"
+$PY - run/convergence.csv continued.log <<'PYEOF' || fail "the exported job does not start at the run's final parameter error"
+import csv, re, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+run = float(rows[-1]["param_error"])
+m = re.search(r"parameter error ([0-9.e+-]+) ->", open(sys.argv[2]).read())
+assert m, "optimize printed no parameter error"
+start = float(m.group(1))
+print(f"run's final parameter error {run:.6g}; the exported job's start {start:.6g}")
+assert run > 0 and abs(start - run) <= 1e-3 * run, (run, start)
+PYEOF
 "$BIN/invr" run exp/scene.json --steps 1 --workers 2 --final-spp 4 -o again > again.log 2>&1 || fail "the exported job does not run: $(tail -3 again.log)"
 
 # A Mitsuba scene with meshes of its own, its parameters in Mitsuba's names (the light is named

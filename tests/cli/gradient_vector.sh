@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# invr bench gradient-vector (issue 58: the invr half of deploy/peers.sh): a job's gradient at its
+# invr-lab bench gradient-vector (issue 58: the invr half of deploy/peers.sh): a job's gradient at its
 # start per component with standard errors, per method, beside central finite differences of
 # invr's own renders; errors for impossible settings. A smoke test of the command: the estimators
 # themselves are validated against finite differences in tests/core/diff.
@@ -12,7 +12,7 @@ mkdir -p "$DIR"
 cd "$DIR"
 fail() { echo "gradient_vector: FAILED: $*"; exit 1; }
 
-"$BIN/invr" bench gradient-vector cornell --set optimization.target_spp=16 --methods pt,ris --evaluations 4 --fd-evaluations 4 \
+"$BIN/invr-lab" bench gradient-vector cornell --set optimization.target_spp=16 --methods pt,ris --evaluations 4 --fd-evaluations 4 \
   --fd-components 0 --per-evaluation --targets-out targets --json > g.json 2> g.err || fail "the command failed: $(tail -3 g.err)"
 [ -s targets/target_view0.exr ] || fail "no target image written"
 /usr/bin/python3 - g.json <<'PYEOF' || fail "the report is wrong"
@@ -40,6 +40,6 @@ for m in ("pt", "ris"):
     assert abs(z) < 5, f"{m}: z {z:.1f} against finite differences"
 print("gradient-vector report ok")
 PYEOF
-if "$BIN/invr" bench gradient-vector cornell --evaluations 1 > one.log 2>&1; then fail "--evaluations 1 was accepted"; fi
+if "$BIN/invr-lab" bench gradient-vector cornell --evaluations 1 > one.log 2>&1; then fail "--evaluations 1 was accepted"; fi
 grep -q "at least 2" one.log || fail "the error does not say why: $(cat one.log)"
 echo "gradient_vector: ok"

@@ -46,6 +46,10 @@ def test_submit_watch_result(service, tmp_path):
     steps = [e for e in seen if e.kind == "step"]
     assert [e.step for e in steps] == [1, 2, 3, 4]
     assert all(e.image_loss > 0 for e in steps)
+    # No silent wait: the sessions' build (targets, burn-in) is announced and timed before step 1.
+    before = [e.message for e in seen[:kinds.index("step")] if e.kind == "message"]
+    assert any(m.startswith("preparing: the workers build each shard's session") for m in before), before
+    assert any(m.startswith("sessions ready: ") for m in before), before
     st = job.status()
     assert st["state"] == "SUCCEEDED" and st["step"] == 4 and isinstance(st["step"], int)
     r = job.result(tmp_path / "out")

@@ -289,6 +289,23 @@ def main():
     b.wait("(() => { const i = document.getElementById('target-view0'); return i && i.complete && i.naturalWidth > 0; })()",
            "the target image", timeout=120)
     b.wait("document.getElementById('diff-view0').dataset.ready === '1'", "the difference image")
+    # HDR views (issue 61): the exposure is set from the target's percentiles, the target and the
+    # snapshot are converted from their EXRs at it, and moving the control reloads both and redraws
+    # their difference at the new exposure.
+    b.wait("document.getElementById('exposure-value').textContent.includes('auto')", "the automatic exposure")
+    auto_ev = float(b.eval("document.getElementById('exposure').value"))
+    check(auto_ev < -2, f"the automatic exposure darkens oxalis's spot-lit target ({auto_ev} stops)")
+    check(b.eval("(() => { const s = document.getElementById('target-view0').getAttribute('src'); "
+                 "return s.includes('.exr') && s.includes('exposure='); })()"), "the target is shown from its EXR at that exposure")
+    before = b.eval("document.getElementById('diff-view0').toDataURL()")
+    b.eval("(() => { const e = document.getElementById('exposure'); e.value = '0'; e.dispatchEvent(new Event('input')); return true; })()")
+    b.wait("(() => { const t = document.getElementById('target-view0'), s = document.getElementById('snapshot-view0'); "
+           "return t.dataset.exposure === '0' && s.dataset.exposure === '0' && !t.getAttribute('src').includes('exposure=') && t.complete; })()",
+           "the views at 0 stops")
+    b.wait(f"document.getElementById('diff-view0').toDataURL() !== {json.dumps(before)}", "the difference redrawn at the new exposure")
+    check(b.eval("document.getElementById('exposure-value').textContent") == "0 stops", "the control shows the user's exposure")
+    b.eval("document.getElementById('exposure-auto').click(); true")
+    b.wait(f"document.getElementById('exposure').value === '{auto_ev:g}'", "the automatic exposure again")
     first_step = int(b.eval("document.getElementById('snapshot-view0').dataset.step"))
     b.wait(f"+document.getElementById('chart-time').dataset.points > {first_points}", "more chart points (live update)")
     b.wait(f"+document.getElementById('snapshot-view0').dataset.step > {first_step}", "a later snapshot (live update)", timeout=120)
@@ -296,7 +313,7 @@ def main():
     check(b.eval("document.getElementById('job-title').textContent.includes('<script>') && window.__xss === undefined"),
           "the job page shows the name as text too")
     check(b.eval("document.querySelectorAll('#parameters-body tr').length > 0"), "the parameters table is filled")
-    b.screenshot("job.png")
+    b.screenshot("job-escaped-name.png")
 
     b.navigate(url + "#/workers")
     b.wait("document.querySelectorAll('#workers-body tr').length >= 1", "the workers table")
@@ -307,9 +324,37 @@ def main():
     b.navigate(url + "#/")  # the list again, now with a rate and an ETA
     b.wait(f"document.querySelector('#jobs-body tr[data-job=\"{job_id}\"]') && "
            f"document.querySelector('#jobs-body tr[data-job=\"{job_id}\"]').textContent.includes('/s')", "the job's rate")
-    b.screenshot("jobs.png")
+    b.screenshot("jobs-running.png")
 
     invr("cancel", job_id, "--server", grpc_addr)
+
+    # A zoo job as the zoo gives it, run to its end with snapshots, for docs/dashboard.md's job
+    # page: its HDR views at the automatic exposure, its texture beside the truth (truth/ among the
+    # results of a synthetic job).
+    clean = json.loads(invr("example", "oxalis"))
+    clean.setdefault("optimization", {})["steps"] = 60
+    clean["optimization"]["snapshot_every"] = 10
+    clean_file = os.path.join(work, "oxalis.json")
+    json.dump(clean, open(clean_file, "w"))
+    clean_id = submit(grpc_addr, clean_file)
+    deadline = time.time() + 240
+    while api(url, "/api/jobs/" + clean_id)["state"] in ("QUEUED", "RUNNING"):
+        check(time.time() < deadline, "the oxalis job ends within 240 s")
+        time.sleep(1)
+    check(api(url, "/api/jobs/" + clean_id)["state"] == "SUCCEEDED", "the oxalis job succeeded")
+    b.navigate(url + "#/job/" + clean_id)
+    b.wait("(() => { const i = document.getElementById('snapshot-view0'); return i && i.complete && i.naturalWidth > 0 && "
+           "document.getElementById('diff-view0').dataset.ready === '1'; })()", "the oxalis job's final render and difference", timeout=60)
+    b.wait("document.querySelectorAll('#textures img').length === 2 && [...document.querySelectorAll('#textures img')].every(i => i.complete && i.naturalWidth > 0)",
+           "the texture and its truth", timeout=60)
+    captions = b.eval("[...document.querySelectorAll('#textures figcaption')].map(c => c.textContent).join('|')")
+    check(captions == "materials/painting/albedo (truth)|materials/painting/albedo (result)",
+          f"the texture is captioned by its parameter, beside its truth ({captions})")
+    check(b.eval("document.getElementById('exposure-value').textContent.includes('auto')"), "the finished job's views are at the automatic exposure")
+    b.screenshot("job.png")
+    b.navigate(url + "#/")
+    b.wait(f"!!document.querySelector('#jobs-body tr[data-job=\"{clean_id}\"]')", "the job list with the oxalis job")
+    b.screenshot("jobs.png")
     log = open(os.path.join(work, "server.log"), errors="replace").read()
     check(CLIENT_TOKEN not in log and WORKER_TOKEN not in log, "no token in the server's log")
     check("dashboard: alice signed in" in log, "the sign-in is logged by name")
@@ -408,7 +453,7 @@ def measure(b):
         t0 = time.time()
         while True:
             st = api(url, "/api/jobs/" + jid)
-            if st["state"] not in ("queued", "running"):
+            if st["state"] not in ("QUEUED", "RUNNING"):
                 break
             marks.setdefault(st["step"] // 500 * 500, rss_kb(p.pid))
             time.sleep(1)

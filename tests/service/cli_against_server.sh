@@ -33,8 +33,8 @@ head -1 "$DIR/watch.json" | grep -q '"sequence":4,'
 tail -1 "$DIR/watch.json" | grep -q '"final"'
 "$BIN/invr" status "$ID" --server "$ADDR" | grep -q "SUCCEEDED  step 3/3"
 "$BIN/invr" list --server "$ADDR" | grep -q "$ID  SUCCEEDED  cornell"
-"$BIN/invr" fetch "$ID" -o "$DIR/results" --server "$ADDR" | grep -q "wrote 11 file"
-test -s "$DIR/results/parameters.json" && test -s "$DIR/results/job.json" && test -s "$DIR/results/final_view0.exr" && test -s "$DIR/results/convergence.png"
+"$BIN/invr" fetch "$ID" -o "$DIR/results" --server "$ADDR" | grep -q "wrote 12 file"  # with truth/parameters.json
+test -s "$DIR/results/truth/parameters.json" && test -s "$DIR/results/parameters.json" && test -s "$DIR/results/job.json" && test -s "$DIR/results/final_view0.exr" && test -s "$DIR/results/convergence.png"
 
 # A long job, cancelled: watch exits with 6, cancel is idempotent.
 LONG=$("$BIN/invr" submit cornell --steps 100000 --target-spp 4 --server "$ADDR")

@@ -272,7 +272,7 @@ TEST(Robustness, MalformedRequestBytesAreInvalidArgumentNotUnimplemented) {
       {"/invr.v1.InvrService/SubmitJob", truncatedSubmit}, {"/invr.v1.InvrService/SubmitJob", badWireType},
       {"/invr.v1.InvrService/GetJob", truncatedGet},       {"/invr.v1.InvrService/CancelJob", truncatedGet},
       {"/invr.v1.InvrService/PlanJob", truncatedSubmit},   {"/invr.v1.InvrService/ListJobs", badWireType},
-      {"/invr.v1.InvrService/ListWorkers", badWireType}};
+      {"/invr.v1.InvrService/ListWorkers", badWireType},   {"/invr.v1.InvrService/ResolveJob", badWireType}};
   for (const auto& [method, bytes] : calls) {
     grpc::Status st = rawCall(c.address(), method, bytes);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method << ": " << st.error_message();

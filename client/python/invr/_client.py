@@ -1,7 +1,7 @@
 """The service from Python: Client (one channel to an invr-server) and Job (one submitted job)."""
 
-import math
 import os
+import sys
 import time
 import uuid
 from pathlib import Path
@@ -10,18 +10,19 @@ import grpc
 from google.protobuf import json_format
 from google.protobuf.descriptor import FieldDescriptor
 
+from invr._constants import MAX_MESSAGE_BYTES, CHUNK_BYTES
 from invr._errors import InvrError, InputError, ServerUnavailable, JobFailed, JobCancelled
 from invr._events import Event, to_python
 
 try:
     from invr.v1 import job_pb2, service_pb2, service_pb2_grpc
 except ImportError as e:  # pragma: no cover - the build generates them
-    raise ImportError("invr's generated gRPC modules are missing: use the package the build assembles in "
-                      "build/python (PYTHONPATH=build/python), after `bash deploy/build.sh`") from e
+    raise ImportError("invr's generated gRPC modules are missing: install the package (pip install ./client/python) or use "
+                      "the one the build assembles in build/python (PYTHONPATH=build/python)") from e
 
 DEFAULT_ADDRESS = "127.0.0.1:50051"
-_MAX_MESSAGE = 512 << 20  # proto/wire/wire.h: kMaxMessageBytes
-_CHUNK = 1 << 20          # proto/wire/wire.h: kChunkBytes
+_MAX_MESSAGE = MAX_MESSAGE_BYTES  # generated from proto/wire/wire.h
+_CHUNK = CHUNK_BYTES
 _FINISHED = ("SUCCEEDED", "FAILED", "CANCELLED")
 
 
@@ -50,6 +51,7 @@ class Client:
             token = os.environ.get("INVR_TOKEN") or None
         self._metadata = (("authorization", "Bearer " + token),) if token else ()
         self.reconnect_seconds = reconnect_seconds
+        self._uploaded = {}
         options = [("grpc.max_receive_message_length", _MAX_MESSAGE), ("grpc.max_send_message_length", _MAX_MESSAGE),
                    ("grpc.initial_reconnect_backoff_ms", 100), ("grpc.min_reconnect_backoff_ms", 100),
                    ("grpc.max_reconnect_backoff_ms", 1000)]
@@ -112,21 +114,44 @@ class Client:
 
     # -- jobs
 
-    def spec(self, job, **overrides):
-        """The JobSpec message a job argument means (see submit), before assets are uploaded."""
-        from invr._local import resolve_job
-        spec = job_pb2.JobSpec()
-        try:
-            json_format.ParseDict(resolve_job(job, **overrides), spec)
-        except json_format.ParseError as e:  # the CLI wrote it, so this is a version mismatch
-            raise InvrError(f"the job written by `invr import` does not parse here: {e}") from None
-        return spec
+    def spec(self, job, params=None, defines=None, sets=None, steps=None, method=None, target_spp=None, seed=None,
+             snapshot_every=None, for_optimization=True):
+        """The JobSpec message a job argument means (see submit), resolved by the server
+        (ResolveJob, with the code `invr` runs locally): the files the job or its Mitsuba scene
+        names are uploaded on the way, so the spec names every file by its SHA-256. Needs no invr
+        build on this machine. for_optimization: the job must name parameters (submit, plan)."""
+        from invr._resolve import resolve_request, override_lists
+        p, d, s = override_lists(params=params, defines=defines, sets=sets, steps=steps, method=method, target_spp=target_spp,
+                                 seed=seed, snapshot_every=snapshot_every)
+        req, base = resolve_request(job, self.upload)
+        req.params.extend(p)
+        req.defines.extend(d)
+        req.sets.extend(s)
+        req.for_optimization = bool(for_optimization)
+        for _ in range(64):  # a Mitsuba <include> names its files only once it is there
+            resp = self._call(self._stub.ResolveJob, req, "job")
+            for w in resp.warnings:
+                sys.stderr.write(f"warning: {w}\n")
+            if not resp.missing_files:
+                return resp.spec
+            for name in resp.missing_files:
+                if name in req.files:
+                    raise InvrError(f"the server asks again for '{name}', which was uploaded")
+                f = base / name
+                if not f.is_file():
+                    raise InputError(f"the job names '{name}', which is not at '{f}'")
+                req.files[name] = self.upload(f)
+        raise InvrError("the job's files were still incomplete after 64 rounds of uploads")
 
     def upload(self, path):
         """Uploads a file to the server's asset store; returns its SHA-256 (lowercase hex)."""
         path = Path(path)
         if not path.is_file():
             raise InputError(f"asset '{path}' not found")
+        st = path.stat()
+        key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+        if key in self._uploaded:  # a job's files once per client, however often it is resolved
+            return self._uploaded[key]
 
         def chunks():
             with open(path, "rb") as f:
@@ -136,7 +161,9 @@ class Client:
                         break
                     yield service_pb2.AssetChunk(data=b)
 
-        return self._call(self._stub.UploadAsset, chunks(), f"upload {path}", timeout=None).sha256
+        sha = self._call(self._stub.UploadAsset, chunks(), f"upload {path}", timeout=None).sha256
+        self._uploaded[key] = sha
+        return sha
 
     def _upload_assets(self, message, where=""):
         """Every AssetRef with a path, uploaded and replaced by its SHA-256 (as the CLI does)."""
@@ -195,15 +222,10 @@ class Client:
         server sees it (DescribeScene): a list of dicts with name, kind, size, width, height,
         channels, lower, upper, learning_rate and aliases (Mitsuba names). invr.parameters() asks
         the local invr binary instead, with no server."""
-        spec = self.spec(scene, defines=defines)
+        spec = self.spec(scene, defines=defines, for_optimization=False)
         self._upload_assets(spec)
         desc = self._call(self._stub.DescribeScene, service_pb2.DescribeSceneRequest(spec=spec), "parameters")
-        out = [to_python(p) for p in desc.parameters]
-        for p in out:  # as invr.parameters() has them (JSON null): None for no bound
-            for k in ("lower", "upper"):
-                if not math.isfinite(p[k]):
-                    p[k] = None
-        return out
+        return [to_python(p) for p in desc.parameters]  # an infinite bound is None, as JSON's null
 
     def wait_for_workers(self, n=1, timeout=60.0):
         """Waits until at least n workers are connected; raises ServerUnavailable after timeout."""

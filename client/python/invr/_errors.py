@@ -2,11 +2,14 @@
 
 
 class InvrError(Exception):
-    """Anything invr reports as an error. `code` is the gRPC status or the CLI exit code, if any."""
+    """Anything invr reports as an error. `code`: the gRPC status name of the failure
+    ("INVALID_ARGUMENT", "UNAVAILABLE", ...; None when there is none); `exit_code`: the exit
+    status of the invr executable it came from (invr.run, invr.parameters, invr.export), else None."""
 
-    def __init__(self, message, code=None):
+    def __init__(self, message, code=None, exit_code=None):
         super().__init__(message)
         self.code = code
+        self.exit_code = exit_code
 
 
 class InputError(InvrError):

@@ -1,12 +1,16 @@
 """Progress events and status messages as plain Python: dicts, lists, ints, floats, enum names."""
 
+import base64
 import math
 
 from google.protobuf.descriptor import FieldDescriptor
 
 
 def to_python(message):
-    """A protobuf message as plain Python: dicts, lists, ints, floats (NaN stays NaN), enum names."""
+    """A protobuf message as plain Python in invr's one JSON mapping (proto/wire/json_lines.h, the
+    same as `invr ... --json`, progress.jsonl and the dashboard's API): field names as in the
+    .proto files, enums by name, every number a number, non-finite values None, scalar fields
+    always present, unset messages, oneof members and optionals left out, bytes as base64."""
     out = {}
     for field in message.DESCRIPTOR.fields:
         value = getattr(message, field.name)
@@ -29,6 +33,10 @@ def _value(field, v):
     if field.type == FieldDescriptor.TYPE_ENUM:
         ev = field.enum_type.values_by_number.get(v)
         return ev.name if ev is not None else v
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if field.type == FieldDescriptor.TYPE_BYTES:
+        return base64.b64encode(v).decode()
     return v
 
 

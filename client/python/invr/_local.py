@@ -1,23 +1,21 @@
-"""What runs on this machine: the invr binaries (resolving job arguments, the embedded server with
-local workers of `invr run`, a scene's parameter names)."""
+"""What runs on this machine: the invr binaries (the embedded server with local workers of
+`invr run`, a scene's parameter names without a server, export). Nothing a server can do runs here:
+Client resolves jobs through the server's ResolveJob."""
 
 import json
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from invr._errors import InvrError, InputError, JobFailed, JobCancelled
 
-# Exit codes of the CLI (client/common/exit_codes.h).
-_EXIT_INPUT = 1
-_EXIT_USAGE = 2
-_EXIT_JOB_FAILED = 4
-_EXIT_UNAVAILABLE = 5
-_EXIT_CANCELLED = 6
+# Exit codes of the CLI (generated from client/common/exit_codes.h).
+from invr._constants import (EXIT_INPUT_ERROR as _EXIT_INPUT, EXIT_USAGE as _EXIT_USAGE, EXIT_JOB_FAILED as _EXIT_JOB_FAILED,
+                             EXIT_SERVER_UNAVAILABLE as _EXIT_UNAVAILABLE, EXIT_CANCELLED as _EXIT_CANCELLED, EXIT_INTERNAL,
+                             EXIT_REFUSED)
 
 
 def binary(name="invr"):
@@ -37,6 +35,12 @@ def binary(name="invr"):
                     f"(build/bin after `bash deploy/build.sh`), or put it on $PATH")
 
 
+# The gRPC status name each exit status of the CLI stands for (InvrError.code has one type).
+_CODE_OF_EXIT = {_EXIT_INPUT: "INVALID_ARGUMENT", _EXIT_USAGE: "INVALID_ARGUMENT", EXIT_INTERNAL: "INTERNAL",
+                 _EXIT_JOB_FAILED: "ABORTED", _EXIT_UNAVAILABLE: "UNAVAILABLE", _EXIT_CANCELLED: "CANCELLED",
+                 EXIT_REFUSED: "UNAUTHENTICATED"}
+
+
 def _cli_error(proc_stderr, code):
     """The CLI's own message ("invr: error: ..."), as the matching exception."""
     lines = [l for l in proc_stderr.strip().splitlines() if l.strip()]
@@ -45,12 +49,13 @@ def _cli_error(proc_stderr, code):
         if msg.startswith(prefix):
             msg = msg[len(prefix):]
             break
+    name = _CODE_OF_EXIT.get(code, "UNKNOWN")
     if code in (_EXIT_INPUT, _EXIT_USAGE):
-        return InputError(msg, code)
+        return InputError(msg, name, exit_code=code)
     if code == _EXIT_UNAVAILABLE:
         from invr._errors import ServerUnavailable
-        return ServerUnavailable(msg, code)
-    return InvrError(msg, code)
+        return ServerUnavailable(msg, name, exit_code=code)
+    return InvrError(msg, name, exit_code=code)
 
 
 def _job_argument(job):
@@ -65,79 +70,76 @@ def _job_argument(job):
     raise InputError(f"a job is a dict, a job file (.json), a Mitsuba scene (.xml) or a zoo name; got {type(job).__name__}")
 
 
-def _override_args(params=None, defines=None, sets=None, steps=None, method=None, target_spp=None, seed=None,
-                   snapshot_every=None):
+def _override_args(**overrides):
     """The CLI options that carry a job's overrides."""
+    from invr._resolve import override_lists
+    params, defines, sets = override_lists(**overrides)
     args = []
-    items = params.items() if isinstance(params, dict) else (params or [])
-    for p in items:
-        # "name", "name=0.5", ("name", 0.5), ("name", [0.1, 0.2, 0.3]); a dict maps names to values (or None)
-        if isinstance(p, (tuple, list)):
-            name, value = p
-            if value is None:
-                args += ["--param", str(name)]
-            else:
-                values = np.ravel(np.asarray(value, dtype=float)).tolist()
-                args += ["--param", f"{name}=" + ",".join(repr(float(v)) for v in values)]
-        else:
-            args += ["--param", str(p)]
-    for k, v in (defines or {}).items():
-        args += ["-D", f"{k}={v}"]
-    all_sets = dict(sets or {})
-    if steps is not None:
-        all_sets["optimization.steps"] = int(steps)
-    if method is not None:
-        all_sets["optimization.method"] = method
-    if target_spp is not None:
-        all_sets["optimization.target_spp"] = int(target_spp)
-    if seed is not None:
-        all_sets["optimization.seed"] = int(seed)
-    if snapshot_every is not None:
-        all_sets["optimization.snapshot_every"] = int(snapshot_every)
-    for k, v in all_sets.items():
-        text = v if isinstance(v, str) else json.dumps(v)
-        args += ["--set", f"{k}={text}"]
+    for p in params:
+        args += ["--param", p]
+    for d in defines:
+        args += ["-D", d]
+    for s in sets:
+        args += ["--set", s]
     return args
 
 
-def resolve_job(job, **overrides):
-    """The job as one self-contained JSON dict (zoo names kept by name, Mitsuba scenes imported,
-    overrides applied, asset paths absolute), through `invr import`."""
-    arg, stdin = _job_argument(job)
-    with tempfile.TemporaryDirectory(prefix="invr-job-") as tmp:
-        out = Path(tmp) / "job.json"
-        proc = subprocess.run([binary(), "import", arg, "-o", str(out)] + _override_args(**overrides),
-                              input=stdin, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise _cli_error(proc.stderr, proc.returncode)
-        spec = json.loads(out.read_text())
-    _absolute_paths(spec, Path(tmp))
-    return spec
+class _Progress:
+    """invr.run's progress: a tqdm bar (a terminal's or a notebook's) when tqdm is installed, else
+    one line per 5 % of the steps on stderr; lifecycle messages (preparing, burn-in, ...) above it."""
+
+    def __init__(self):
+        self.bar = None
+        self.next_line = 0
+        try:
+            from tqdm.auto import tqdm
+            self._tqdm = tqdm
+        except ImportError:
+            self._tqdm = None
+
+    def __call__(self, e):
+        if e.kind == "message":
+            self._write(e.message)
+        elif e.kind == "step":
+            text = f"loss {e.loss:.4g}, image loss {e.image_loss:.4g}" + (
+                f", param error {e.param_error:.4g}" if e.param_error is not None else "")
+            if self._tqdm is not None:
+                if self.bar is None:
+                    self.bar = self._tqdm(total=e.steps, unit="step", desc="invr", initial=e.step - 1)
+                self.bar.update(e.step - self.bar.n)
+                self.bar.set_postfix_str(text, refresh=False)
+            elif e.step >= self.next_line or e.step == e.steps:
+                sys.stderr.write(f"invr: step {e.step}/{e.steps}: {text}\n")
+                self.next_line = e.step + max(1, e.steps // 20)
+        elif e.kind == "final":
+            if self.bar is not None:
+                self.bar.close()
+            self._write(f"{e.state.lower()}" + (f": {e.reason}" if e.reason else ""))
+
+    def _write(self, text):
+        if self.bar is not None:
+            self.bar.write("invr: " + text, file=sys.stderr)
+        else:
+            sys.stderr.write(f"invr: {text}\n")
 
 
-def _absolute_paths(node, base):
-    """AssetRef {"path": ...} objects made absolute against base (where `invr import` wrote them
-    relative to)."""
-    if isinstance(node, dict):
-        for k, v in node.items():
-            if isinstance(v, dict) and set(v.keys()) == {"path"} and isinstance(v["path"], str) and k != "mitsuba":
-                if not os.path.isabs(v["path"]):
-                    v["path"] = os.path.normpath(str(base / v["path"]))
-            else:
-                _absolute_paths(v, base)
-    elif isinstance(node, list):
-        for v in node:
-            _absolute_paths(v, base)
+def _interactive():
+    """A terminal on stderr, or a Jupyter kernel."""
+    if sys.stderr.isatty():
+        return True
+    return "ipykernel" in sys.modules
 
 
 def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps=None, method=None, target_spp=None,
-        seed=None, store=None, on_event=None, snapshot_every=None, final_spp=None):
+        seed=None, store=None, on_event=None, snapshot_every=None, final_spp=None, progress=None):
     """Runs a job to its end on an embedded server with local worker processes, as `invr run` does,
     and returns its Result. `job`: a dict, a job file, a Mitsuba scene (with params=) or a zoo name.
     `on_event(event)` sees every progress event. `final_spp`: samples per pixel of the initial and
     final renders written with the results (`invr run --final-spp`, default 64). Raises JobFailed /
     JobCancelled (with the results fetched into .result where there were any), InputError for a
-    wrong job."""
+    wrong job. `progress`: show the lifecycle messages and a progress bar (tqdm when installed,
+    else a line per 5 % of the steps) on stderr; None (the default) shows them in a terminal or a
+    notebook only."""
     from invr._events import Event
     from invr._results import read_results
 
@@ -158,6 +160,7 @@ def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps
         proc.stdin.write(stdin)
         proc.stdin.close()
     final = None
+    show = _Progress() if (progress if progress is not None else _interactive()) else None
     try:
         for line in proc.stdout:
             line = line.strip()
@@ -166,6 +169,8 @@ def run(job, workers=None, out=None, params=None, defines=None, sets=None, steps
             event = Event(json.loads(line))
             if event.kind == "final":
                 final = event
+            if show is not None:
+                show(event)
             if on_event is not None:
                 on_event(event)
     except BaseException:

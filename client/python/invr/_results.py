@@ -1,5 +1,6 @@
 """A job's results as NumPy arrays: parameters (textures as H x W x C, meshes' vertices as N x 3),
-images (EXR and PNG, read with Debian's OpenImageIO bindings) and the convergence CSV."""
+images (EXR and PNG, read with OpenImageIO: the pip package's dependency, or Debian's
+python3-openimageio for build/python) and the convergence CSV."""
 
 import csv
 import json
@@ -16,7 +17,8 @@ def read_image(path):
     try:
         import OpenImageIO as oiio
     except ImportError as e:  # pragma: no cover - deploy/setup.sh installs it
-        raise InvrError("reading images needs Debian's python3-openimageio (deploy/setup.sh installs it)") from e
+        raise InvrError("reading images needs OpenImageIO's Python bindings: pip install OpenImageIO (the package depends on "
+                        "it), or Debian's python3-openimageio (deploy/setup.sh installs it)") from e
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         raise InvrError(f"cannot read image '{path}': {oiio.geterror()}")

@@ -407,7 +407,7 @@ TEST(ShapeGradient, ShadowBorderUnderAGrazingLight) {
 // so its top edge's shadow stays in view), each against a reference at h = 5e-4 over 32 seeds,
 // 1280 sessions each, with the power to see a 10 % error. Before the border term took its pixel
 // at the border the renderer draws (shadow_border.h), the estimate was 1.1 %, 1.8 % and 6.3 %
-// low, growing with cot(elevation) (docs/differentiable-rendering.md).
+// low, growing with cot(elevation) (docs/shapes.md).
 TEST(ShapeGradientDeep, ShadowBorderUnderAGrazingLightAtEachElevation) {
   for (auto [zl, half, tz] : {std::tuple{1.6f, 0.42f, 0.44f}, std::tuple{0.8f, 0.21f, 0.22f}, std::tuple{0.42f, 0.1f, 0.12f}}) {
     std::string json = kGrazingLightScene;
@@ -900,7 +900,7 @@ TEST(ShapeGradient, KnotUnderPointLightsOnly) {
   }
 }
 
-// Diagnosis of the knot's excess (docs/differentiable-rendering.md, "The knot's excess"): in the
+// Diagnosis of the knot's excess (docs/shapes.md, "The knot's excess"): in the
 // deep suite (bash deploy/test.sh --deep), which checks each reference (h against h/2) and prints
 // FD and the PT estimate with every term and with terms left out, for the point fills with or
 // without the floor, for each fill alone where it is, and for one point light beside the camera.

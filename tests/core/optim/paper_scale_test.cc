@@ -1,6 +1,6 @@
 // The paper-scale zoo problems (oxalis-hd, kitty, gallery; issue 42): at full size they have the
 // scale their descriptions claim, and their jobs run (at reduced size: the full runs are
-// benchmarks, invr eval --scale paper).
+// benchmarks, invr-lab eval --scale paper).
 #include <gtest/gtest.h>
 
 #include <cmath>
