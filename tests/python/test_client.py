@@ -17,6 +17,17 @@ REPO = Path(__file__).resolve().parents[2]
 SMALL = {"steps": 3, "target_spp": 4}
 
 
+def _same(a, b):
+    """Equal JSON values, floats to float precision (the CLI prints a float field at its own)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) or isinstance(b, float):
+        return isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-30)
+    return a == b and type(a) == type(b)
+
+
 def test_run_embedded_returns_arrays(tmp_path):
     events = []
     result = invr.run("cornell", workers=2, out=tmp_path / "run", on_event=events.append, final_spp=4, **SMALL)
@@ -60,6 +71,10 @@ def test_submit_watch_result(service, tmp_path):
     lines = [json.loads(l) for l in (tmp_path / "out" / "progress.jsonl").read_text().splitlines()]
     assert "final" in lines[-1] and lines[-1]["final"]["state"] == "SUCCEEDED"
     assert isinstance(lines[-1]["sequence"], int)
+    # One JSON mapping (issue 61): Python's dict of a status is `invr status --json`'s object.
+    cli = subprocess.run([invr.binary(), "status", job.id, "--json", "--server", service.address], capture_output=True, text=True)
+    assert cli.returncode == 0, cli.stderr
+    assert _same(json.loads(cli.stdout), job.status()), (cli.stdout, job.status())
     assert any(j["job_id"] == job.id for j in c.jobs())
     assert len(c.workers()) == 1  # the module's one worker
 

@@ -157,9 +157,12 @@ TEST(JobBook, ARestartedServerQueuesUnfinishedJobsAgainAndKeepsFinishedOnes) {
     JobStore store(dir.path);
     JobBook book(store, 4);
     bool existing = false;
-    ASSERT_TRUE(book.add(spec("a"), "req-a", &a, &existing).ok());
+    v1::JobSpec pt = spec("a");
+    pt.mutable_optimization()->set_method(v1::METHOD_PT);
+    ASSERT_TRUE(book.add(pt, "req-a", &a, &existing).ok());
     ASSERT_TRUE(book.add(spec("b"), "", &b, &existing).ok());
     ASSERT_TRUE(book.take());  // a runs...
+    book.started(a, 0, 10, "pt");
     book.end(a, v1::FAILED, "diverged", nullptr);
     ASSERT_TRUE(book.take());  // ... b runs when the server stops
   }
@@ -170,6 +173,9 @@ TEST(JobBook, ARestartedServerQueuesUnfinishedJobsAgainAndKeepsFinishedOnes) {
   ASSERT_TRUE(book.status(a, &st).ok());
   EXPECT_EQ(st.state(), v1::FAILED);
   EXPECT_EQ(st.reason(), "diverged");
+  EXPECT_EQ(st.method(), "pt");  // a finished job never starts again: its method comes from its spec
+  ASSERT_TRUE(book.status(b, &st).ok());
+  EXPECT_EQ(st.method(), "restir");  // the default method
   ASSERT_TRUE(book.status(b, &st).ok());
   EXPECT_EQ(st.state(), v1::QUEUED);
   EXPECT_EQ(book.queued(), 1u);

@@ -4,10 +4,11 @@
 # a fresh virtual environment with its dependencies from PyPI, then used with no invr executable on
 # PATH and no invr build beside it against a running invr-server and worker: a zoo job, a Mitsuba
 # 3 scene with its files and a job file with relative textures are submitted, and their results
-# read as NumPy arrays (tests/python/venv/use_installed.py).
-# usage: venv_install.sh BIN_DIR WORK_DIR REPO_DIR VERSION
+# read as NumPy arrays (tests/python/venv/use_installed.py). Then the wheel the build wrote
+# (BUILD_WHEEL, from build/python with Debian's protoc) in a venv of its own: a zoo job's results.
+# usage: venv_install.sh BIN_DIR WORK_DIR REPO_DIR VERSION BUILD_WHEEL
 set -euo pipefail
-BIN="$1"; WORK="$2"; REPO="$3"; VERSION="$4"
+BIN="$1"; WORK="$2"; REPO="$3"; VERSION="$4"; BUILD_WHEEL="$5"
 fail() { echo "venv_install: FAILED: $*"; exit 1; }
 rm -rf "$WORK" && mkdir -p "$WORK"
 cd "$WORK"
@@ -31,4 +32,17 @@ worker=$!
 mkdir -p user && cd user
 env -i HOME="$WORK" PATH=/usr/bin:/bin "$WORK/venv/bin/python" "$REPO/tests/python/venv/use_installed.py" "$address" "$REPO" "$VERSION" \
   || fail "the installed package (server log: $(tail -3 ../server.log))"
+
+/usr/bin/python3 -m venv "$WORK/venv-build"
+"$WORK/venv-build/bin/pip" install --quiet "$BUILD_WHEEL" > ../install-build.log 2>&1 || fail "pip install of the build's wheel: $(tail -5 ../install-build.log)"
+env -i HOME="$WORK" PATH=/usr/bin:/bin "$WORK/venv-build/bin/python" - "$address" "$VERSION" <<'PYEOF' || fail "the build's wheel"
+import shutil, sys
+import numpy as np
+import invr
+assert shutil.which("invr") is None and "venv-build" in invr.__file__, invr.__file__
+assert invr.__version__ == sys.argv[2], invr.__version__
+r = invr.Client(sys.argv[1]).submit("cornell", steps=2, target_spp=4).result("build-wheel")
+assert isinstance(r.parameters["materials/red/albedo"], np.ndarray)
+print("the build's wheel: ok")
+PYEOF
 echo "venv_install: ok"
