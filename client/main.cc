@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <iostream>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -55,5 +56,9 @@ int main(int argc, char** argv) {
   app.footer("The service runs on its own as invr-server and invr-worker (each with --help); benchmarks and the\n"
              "evaluation suite are invr-lab's (invr-lab --help). Documentation: README.md and docs/cli.md.");
   app.set_version_flag("--version", "invr " INVR_VERSION);
+  if (argc > 1 && (std::string(argv[1]) == "bench" || std::string(argv[1]) == "eval")) {
+    std::cerr << "invr: '" << argv[1] << "' is the lab's: run `invr-lab " << argv[1] << " ...` (invr-lab --help)\n";
+    return invr::exit_code::kUsage;
+  }
   return invr::cli::runCommandLine(app, argc, argv, "invr", exitCode);
 }
