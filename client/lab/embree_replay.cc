@@ -182,7 +182,10 @@ void replayOnce(const std::vector<RayGroup>& groups, ReplayTimes& times) {
       if (m == 0) {
         singleHits = h;
         const uint64_t logged = uint64_t(std::count_if(groups[g].rays.begin(), groups[g].rays.end(), [](const LoggedRay& r) { return r.hit; }));
-        if (h != logged)
+        // The step traces some shadow rays as packets (EmbreeScene::occludedPacket), whose kernels
+        // may round a ray grazing an edge differently from a single ray's: the same tolerance as
+        // between replay modes. A geometry changed after the log differs by far more.
+        if (double(std::max(h, logged) - std::min(h, logged)) > 1e-4 * double(groups[g].rays.size()) + 2.0)
           throw std::runtime_error("ray replay: single rays found " + std::to_string(h) + " hits among the " + groups[g].kind +
                                    " rays, the logged queries " + std::to_string(logged) + " (the geometry changed after the log)");
       } else if (double(std::max(h, singleHits) - std::min(h, singleHits)) > 1e-4 * double(groups[g].rays.size()) + 2.0)

@@ -74,6 +74,10 @@ class RestirEstimator final : public InteriorEstimator {
       tryFirst[1] = probeItems_[size_t(in.pixel) * size_t(spp_) + size_t(in.slot)];
       hints.items = tryFirst;
       hints.count = 2;
+      // The two reservoirs are last step's (a cache miss each: the store is megabytes) and are read
+      // only after the fresh candidates: fetching them now hides the miss behind that work.
+      for (uint32_t i : tryFirst)
+        if (i < previous_->size()) __builtin_prefetch(&previous_->items()[i]);
       if (windowSearch_) {
         hints.slots = probeItems_;
         hints.x = in.x;

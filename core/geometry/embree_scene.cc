@@ -17,6 +17,34 @@ EmbreeScene::EmbreeScene() {
   if (!device_) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
 }
 
+void EmbreeScene::occludedPacket(int n, const Vec3* o, const Vec3* d, const float* tmax, bool* blocked) const {
+  if (n <= 0) return;
+  if (n == 1) {  // a packet of one costs more than a single ray
+    blocked[0] = occluded(o[0], d[0], 0.f, tmax[0]);
+    return;
+  }
+  if (n > kPacket) throw std::logic_error("EmbreeScene::occludedPacket: more than 8 rays");
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(32) int valid[kPacket];
+  alignas(32) RTCRay8 r;
+  for (int i = 0; i < kPacket; ++i) {
+    const int k = i < n ? i : 0;  // inactive lanes hold a copy of ray 0 (finite values)
+    valid[i] = i < n ? -1 : 0;
+    r.org_x[i] = o[k].x; r.org_y[i] = o[k].y; r.org_z[i] = o[k].z;
+    r.dir_x[i] = d[k].x; r.dir_y[i] = d[k].y; r.dir_z[i] = d[k].z;
+    r.tnear[i] = 0.f; r.tfar[i] = tmax[k];
+    r.mask[i] = 0xffffffffu; r.flags[i] = 0; r.time[i] = 0.f; r.id[i] = unsigned(i);
+  }
+  rtcOccluded8(valid, scene_, &ctx, &r);
+  RayLog* log = RayLog::active();
+  for (int i = 0; i < n; ++i) {
+    blocked[i] = r.tfar[i] < 0.f;  // Embree sets tfar = -inf on a hit
+    if (log) log->record(scene_, o[i], d[i], 0.f, tmax[i], true, blocked[i]);
+  }
+}
+
 EmbreeScene::~EmbreeScene() {
   for (auto g : geoms_) rtcReleaseGeometry(g);
   if (scene_) rtcReleaseScene(scene_);
@@ -29,6 +57,9 @@ void EmbreeScene::build(const std::vector<TriangleMesh>& meshes, const std::vect
   if (scene_) rtcReleaseScene(scene_);
   scene_ = rtcNewScene(device_);
   bool anyDynamic = false;
+  size_t triangles = 0;
+  for (const TriangleMesh& m : meshes) triangles += m.triangleCount();
+  shadowPacketsPay_ = triangles <= kShadowPacketTriangles;
   for (size_t i = 0; i < meshes.size(); ++i) {
     const TriangleMesh& m = meshes[i];
     bool dyn = i < dynamic.size() && dynamic[i];

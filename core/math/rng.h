@@ -131,6 +131,29 @@ class Sampler {
     float x = next1D();
     return {x, next1D()};
   }
+  // Deferred draws: reserve1D/reserve2D take the dimensions next1D/next2D would take and return
+  // the first; value1D/value2D(dim) give the numbers those draws would have returned. A batch of
+  // candidates reserves every draw in order (so the dimensions, and the numbers, are the same as
+  // drawing them one by one) and computes only the ones it uses: a delta light's point draw and
+  // the pick of a zero-weight candidate cost nothing.
+  uint64_t reserve1D() { return dim_++; }
+  uint64_t reserve2D() {
+    const uint64_t d = dim_;
+    dim_ += kind_ == SamplerKind::Sobol ? 1 : 2;
+    return d;
+  }
+  float value1D(uint64_t dim) const {
+    if (kind_ == SamplerKind::Sobol) return sobol::toFloat(sobolSlotAt(dim, nullptr));
+    return float(mix64(base_ + dim * 0x9e3779b97f4a7c15ull) >> 40) * 0x1p-24f;
+  }
+  Vec2 value2D(uint64_t dim) const {
+    if (kind_ == SamplerKind::Sobol) {
+      uint32_t y = 0;
+      uint32_t x = sobolSlotAt(dim, &y);
+      return {sobol::toFloat(x), sobol::toFloat(y)};
+    }
+    return {value1D(dim), value1D(dim + 1)};
+  }
   uint64_t dimension() const { return dim_; }
   SamplerKind kind() const { return kind_; }
   // A child stream for a sub-task (e.g. one RIS candidate) that cannot collide with this one. A
@@ -145,8 +168,9 @@ class Sampler {
  private:
   // The next slot's point: dimension 0 (and dimension 1 into *second), both scrambled, at the
   // sample index shuffled for this slot.
-  uint32_t sobolSlot(uint32_t* second) {
-    const uint64_t h = mix64(base_ + (dim_++) * 0x9e3779b97f4a7c15ull);
+  uint32_t sobolSlot(uint32_t* second) { return sobolSlotAt(dim_++, second); }
+  uint32_t sobolSlotAt(uint64_t dim, uint32_t* second) const {
+    const uint64_t h = mix64(base_ + dim * 0x9e3779b97f4a7c15ull);
     const uint32_t i = sobol::nestedScramble(index_, h);
     if (second) *second = sobol::nestedScramble(sobol::dimension1(i), mix64(h ^ 0xd6e8feb86659fd93ull));
     return sobol::nestedScramble(sobol::dimension0(i), mix64(h + 0x2545f4914f6cdd1dull));

@@ -77,6 +77,55 @@ inline bool traceShadow(const Scene& scene, const ShadingPoint& sp, const LightS
   return scene.occludedSegment(o, target, dir, tmax);
 }
 
+// Shadow rays from one shading point, queued as traceShadow would trace them and answered together
+// in one Embree packet (a shading point's candidates share an origin: coherent rays).
+class ShadowPacket {
+ public:
+  static constexpr int kCapacity = EmbreeScene::kPacket;
+  ShadowPacket() {}  // the ray slots are written before they are read: no initialisation
+  // Queues the ray sp -> ls and returns its slot, or -1 for a degenerate segment (never blocked,
+  // as traceShadow answers; counted all the same). At most kCapacity rays between clears.
+  int push(const ShadingPoint& sp, const LightSample& ls, PathContext* ctx) {
+    if (ctx && ctx->stats) ++ctx->stats->shadow;
+    const Vec3 o = Scene::shadowOrigin(sp.hit->p, sp.hit->ng, ls.wi);
+    if (std::isinf(ls.dist)) return add(o, ls.wi, std::numeric_limits<float>::infinity());
+    const Vec3 target = isBlack(ls.lightNormal) ? ls.lightPoint : offsetOrigin(ls.lightPoint, ls.lightNormal, -ls.wi);
+    const Vec3 d = target - o;
+    const float len = length(d);
+    if (!(len > 0.f)) return -1;
+    return add(o, d / len, len);
+  }
+  // A packet when it pays (half full at least, and a scene where packets win: EmbreeScene), else
+  // ray by ray (a packet may round a ray grazing an edge differently: EmbreeScene::occludedPacket).
+  void trace(const Scene& scene) {
+    if (n_ >= kCapacity / 2 && scene.accel.shadowPacketsPay()) {
+      scene.accel.occludedPacket(n_, o_, d_, tmax_, blocked_);
+      return;
+    }
+    for (int i = 0; i < n_; ++i) blocked_[i] = scene.accel.occluded(o_[i], d_[i], 0.f, tmax_[i]);
+  }
+  bool blocked(int slot) const { return slot >= 0 && blocked_[slot]; }
+  int size() const { return n_; }
+  void clear() { n_ = 0; }
+
+ private:
+  int add(Vec3 o, Vec3 d, float tmax) {
+    o_[n_] = o;
+    d_[n_] = d;
+    tmax_[n_] = tmax;
+    return n_++;
+  }
+  union {
+    Vec3 o_[kCapacity];
+  };
+  union {
+    Vec3 d_[kCapacity];
+  };
+  float tmax_[kCapacity];
+  bool blocked_[kCapacity];
+  int n_ = 0;
+};
+
 // A path to a light sample whose unbiased contribution weight (in the native measure) is W.
 // A path that carries a non-finite value, so the caller's single non-finite check counts and drops
 // the sample (a NaN parameter or an overflow inside a resampling weight must not turn into a silent

@@ -75,10 +75,13 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
   Reservoir c;
   c.M = fresh.M;
   int chosenFrom = -1;  // -1: the fresh reservoir; i: neighbour i
-  c.stream(fresh.y, fresh.W > 0.f ? fresh.wSum : 0.0, fresh.targetY, sampler.next1D());
+  // The picks' draws are reserved in order and hashed only for inputs with a positive weight
+  // (Sampler::reserve1D): the same numbers as drawing each one.
+  const uint64_t freshPick = sampler.reserve1D();
+  if (fresh.W > 0.f && fresh.wSum > 0.0) c.stream(fresh.y, fresh.wSum, fresh.targetY, sampler.value1D(freshPick));
   for (int i = 0; i < k; ++i) {
     const StoredReservoir& q = prev->items()[nb[i]];
-    float u = sampler.next1D();
+    const uint64_t pick = sampler.reserve1D();
     nbM[i] = std::min(q.r.M, s.mCap);
     c.M += nbM[i];
     if (!(q.r.W > 0.f)) continue;
@@ -99,7 +102,8 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     if (t > 0.f && s.visibilityInTarget &&
         (e ? DeltaLightCache::occluded(*e, scene, sp, ctx) : traceShadow(scene, sp, reused, ctx)))
       t = 0.f;
-    if (c.stream(q.r.y, double(t) * double(q.r.W) * double(nbM[i]), t, u)) {
+    const double w = double(t) * double(q.r.W) * double(nbM[i]);
+    if (w > 0.0 && c.stream(q.r.y, w, t, sampler.value1D(pick))) {
       chosen = e ? e->ls : reused;
       chosenF = e ? e->f : reusedF;
       chosenFrom = i;

@@ -57,6 +57,47 @@ TEST(Rng, UniformMeanAndVariance) {
   test::expectPowerOf("variance of U(0,1) (a fixed tolerance of 0.002)", 0.002 * 12);
 }
 
+// A batch reserves its draws in order and hashes only those it reads (Sampler::reserve1D): the
+// numbers must be the ones drawing each in turn gives, for both kinds of sampler, read in any order.
+TEST(Rng, DeferredDrawsAreTheDrawsTheyStandFor) {
+  for (SamplerKind kind : {SamplerKind::Independent, SamplerKind::Sobol}) {
+    for (uint64_t sample = 0; sample < 64; ++sample) {
+      Sampler eager = Sampler::forSample(kind, 0x1234567 + sample, sample), deferred = eager;
+      eager.beginDomain(SampleDomain::directLight(0));
+      deferred.beginDomain(SampleDomain::directLight(0));
+      std::vector<float> want;
+      std::vector<std::pair<uint64_t, int>> reserved;  // (dimension, 1 or 2)
+      for (int i = 0; i < 12; ++i) {
+        const bool twoD = (i * 7 + int(sample)) % 3 == 0;
+        if (twoD) {
+          const Vec2 v = eager.next2D();
+          want.push_back(v.x);
+          want.push_back(v.y);
+          reserved.push_back({deferred.reserve2D(), 2});
+        } else {
+          want.push_back(eager.next1D());
+          reserved.push_back({deferred.reserve1D(), 1});
+        }
+      }
+      EXPECT_EQ(deferred.dimension(), eager.dimension());
+      EXPECT_EQ(deferred.next1D(), eager.next1D()) << "the draw after the batch";
+      std::vector<float> got(want.size());
+      size_t at = want.size();
+      for (size_t i = reserved.size(); i-- > 0;) {  // read back to front
+        if (reserved[i].second == 2) {
+          const Vec2 v = deferred.value2D(reserved[i].first);
+          got[at - 2] = v.x;
+          got[at - 1] = v.y;
+          at -= 2;
+        } else {
+          got[--at] = deferred.value1D(reserved[i].first);
+        }
+      }
+      for (size_t i = 0; i < want.size(); ++i) ASSERT_EQ(got[i], want[i]) << samplerKindName(kind) << " sample " << sample << " draw " << i;
+    }
+  }
+}
+
 TEST(Distribution1D, PmfMatchesWeightsAndSamplingFrequencies) {
   std::vector<float> w = {1, 0, 3, 6};
   Distribution1D d(w);

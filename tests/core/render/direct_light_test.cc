@@ -2,6 +2,7 @@
 // area light over a point (form factor), and RIS against plain NEE on scenes with many lights.
 #include <gtest/gtest.h>
 
+#include "core/render/direct_light.h"
 #include "core/render/path_tracer.h"
 #include "core/scene/zoo.h"
 #include "test_util.h"
@@ -105,6 +106,109 @@ void compareRisWithNee(const std::string& zooName, int maxDepth) {
     double se = std::sqrt(mNee.se() * mNee.se() + mRis.se() * mRis.se());
     EXPECT_NEAR(mRis.mean * test::mutation(), mNee.mean, test::kSigmas * se) << zooName << " visibility " << vis;
     test::expectPower(zooName + (vis ? ", RIS with visibility" : ", RIS") + " against NEE", se, mNee.mean);
+  }
+}
+
+// streamRis takes its candidates in batches (deferred draws, shadow rays in packets where they
+// pay). It must give the numbers of streaming them one by one (Alg. 1 as written, below) exactly:
+// the same reservoir, chosen sample and shadow-ray count at every shading point, for both
+// samplers, with and without visibility in the target, on scenes whose shadow rays go as packets
+// (cornell), one by one (tree), to delta lights only (oxalis) and to an environment (spot).
+Reservoir streamRisOneByOne(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibility,
+                            PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool& nonFinite) {
+  DeltaLightCache deltas;
+  Reservoir r;
+  if (scene.lights.empty()) return r;
+  for (int m = 0; m < candidates; ++m) {
+    const float uSel = sampler.next1D();
+    const Vec2 d2 = sampler.next2D();
+    const float uPick = sampler.next1D();
+    const size_t li = scene.lightSelection().sample(uSel);
+    const float pmf = scene.lightSelection().pmf(li);
+    if (!(pmf > 0.f)) {
+      r.M += 1.f;
+      continue;
+    }
+    DeltaLightCache::Entry* e = scene.lights[li].isDelta() ? deltas.at(scene, sp, uint32_t(li)) : nullptr;
+    LightSample fresh;
+    Rgb f(0.f);
+    float target;
+    if (e) {
+      target = e->target;
+    } else {
+      fresh = sampleLight(scene.lights[li], scene, sp.hit->p, Vec2(d2.y, d2.x), uint32_t(li));
+      target = risTarget(sp, fresh, &f);
+    }
+    const LightSample& ls = e ? e->ls : fresh;
+    if (!std::isfinite(target)) {
+      nonFinite = true;
+      target = 0.f;
+    }
+    if (target > 0.f && visibility && (e ? DeltaLightCache::occluded(*e, scene, sp, ctx) : traceShadow(scene, sp, ls, ctx)))
+      target = 0.f;
+    const double w = target > 0.f ? double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
+    if (r.update(ls.ref, w, target, uPick)) {
+      chosen = ls;
+      chosenF = e ? e->f : f;
+    }
+  }
+  r.finalize(r.M);
+  return r;
+}
+
+TEST(DirectLight, BatchedRisCandidatesGiveTheNumbersOfOneByOne) {
+  for (const char* name : {"cornell", "tree", "oxalis", "spot"}) {
+    auto scene = buildScene(zooScene(name));
+    const Camera& cam = scene->cameras[0];
+    if (std::string(name) == "cornell") EXPECT_TRUE(scene->accel.shadowPacketsPay());  // packets are compared here
+    if (std::string(name) == "tree") EXPECT_FALSE(scene->accel.shadowPacketsPay());    // and single rays here
+    int points = 0, chosenCount = 0;
+    for (SamplerKind kind : {SamplerKind::Independent, SamplerKind::Sobol})
+      for (bool visibility : {true, false})
+        for (int py = 3; py < scene->height; py += 7)
+          for (int px = 5; px < scene->width; px += 7) {
+            Sampler s0 = Sampler::forSample(kind, uint64_t(py * scene->width + px) * 977u + 13u, 0);
+            const Vec2 film = s0.next2D();
+            const Vec3 d = cam.direction(float(px) + film.x, float(py) + film.y, scene->width, scene->height);
+            SurfaceHit hit;
+            if (!scene->intersect(cam.eye, d, hit)) continue;
+            const Bsdf bsdf = scene->materials[size_t(scene->meshMaterial[hit.mesh])].at(hit.uv);
+            if (bsdf.isDelta()) continue;
+            ShadingPoint sp{&hit, &bsdf, shadingFrame(hit, bsdf, -d), Vec3(), -d};
+            sp.wo = sp.frame.toLocal(-d);
+            s0.beginDomain(SampleDomain::directLight(0));
+            const int candidates = 1 + (px + py) % 19;  // batches of every fill, and several batches
+            Sampler s1 = s0, s2 = s0;
+            RayStats rays1, rays2;
+            PathContext ctx1{&rays1}, ctx2{&rays2};
+            LightSample c1, c2;
+            Rgb f1(-1.f), f2(-1.f);
+            bool bad1 = false, bad2 = false;
+            const Reservoir r1 = streamRis(*scene, sp, s1, candidates, visibility, &ctx1, c1, f1, &bad1);
+            const Reservoir r2 = streamRisOneByOne(*scene, sp, s2, candidates, visibility, &ctx2, c2, f2, bad2);
+            const std::string at = std::string(name) + " " + samplerKindName(kind) + (visibility ? " V" : "") + " pixel " +
+                                   std::to_string(px) + "," + std::to_string(py);
+            ASSERT_EQ(r1.wSum, r2.wSum) << at;
+            ASSERT_EQ(r1.M, r2.M) << at;
+            ASSERT_EQ(r1.W, r2.W) << at;
+            ASSERT_EQ(r1.targetY, r2.targetY) << at;
+            ASSERT_EQ(r1.y.light, r2.y.light) << at;
+            ASSERT_EQ(r1.y.tri, r2.y.tri) << at;
+            ASSERT_EQ(r1.y.b1, r2.y.b1) << at;
+            ASSERT_EQ(r1.y.b2, r2.y.b2) << at;
+            ASSERT_EQ(bad1, bad2) << at;
+            ASSERT_EQ(rays1.shadow, rays2.shadow) << at;
+            ASSERT_EQ(s1.dimension(), s2.dimension()) << at;
+            if (r1.W > 0.f) {
+              ASSERT_EQ(c1.lightPoint.x, c2.lightPoint.x) << at;
+              ASSERT_EQ(c1.wi.y, c2.wi.y) << at;
+              ASSERT_EQ(f1.x, f2.x) << at;
+              ++chosenCount;
+            }
+            ++points;
+          }
+    EXPECT_GT(points, 400) << name;
+    EXPECT_GT(chosenCount, points / 8) << name << ": too few lit points for the comparison to mean something";
   }
 }
 
