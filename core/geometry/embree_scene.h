@@ -60,7 +60,7 @@ class EmbreeScene {
   // Up to 8 occlusion queries as one packet (rtcOccluded8), for coherent rays such as a shading
   // point's light candidates (one origin). blocked[i] answers ray i as occluded() does, except,
   // rarely, for a ray grazing an edge, which Embree's packet and single-ray kernels may round
-  // differently (on cornell: 3 of a 64 spp target's 65,536 pixels moved, by 2e-4 relative).
+  // differently (on cornell: 3 of a 256 spp target's 65,536 pixels moved, by 2e-4 relative).
   static constexpr int kPacket = 8;
   void occludedPacket(int n, const Vec3* o, const Vec3* d, const float* tmax, bool* blocked) const;
   // Whether a shading point's shadow rays are faster as packets than one by one in this scene.
