@@ -160,8 +160,12 @@ TEST(DirectLight, BatchedRisCandidatesGiveTheNumbersOfOneByOne) {
   for (const char* name : {"cornell", "tree", "oxalis", "spot"}) {
     auto scene = buildScene(zooScene(name));
     const Camera& cam = scene->cameras[0];
-    if (std::string(name) == "cornell") EXPECT_TRUE(scene->accel.shadowPacketsPay());  // packets are compared here
-    if (std::string(name) == "tree") EXPECT_FALSE(scene->accel.shadowPacketsPay());    // and single rays here
+    if (std::string(name) == "cornell") {
+      EXPECT_TRUE(scene->accel.shadowPacketsPay());  // packets are compared here
+    }
+    if (std::string(name) == "tree") {
+      EXPECT_FALSE(scene->accel.shadowPacketsPay());  // and single rays here
+    }
     int points = 0, chosenCount = 0;
     for (SamplerKind kind : {SamplerKind::Independent, SamplerKind::Sobol})
       for (bool visibility : {true, false})
