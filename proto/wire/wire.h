@@ -25,8 +25,11 @@ inline std::shared_ptr<grpc::Channel> channel(const std::string& address, const 
   // Reconnect within a second of a server coming back: gRPC's default back-off grows to two
   // minutes, which is where a watcher's or worker's retry budget would otherwise go.
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
-  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  // Despite its name, gRPC reads MIN_RECONNECT_BACKOFF as the time one connection attempt may take
+  // (TCP, the TLS handshake, the server's first SETTINGS frame). It stays at gRPC's 20 s: at 100 ms
+  // a TLS handshake with a loaded server timed out before the first call was sent.
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 20000);
   if (!security.tls()) return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
   grpc::SslCredentialsOptions ssl;
   ssl.pem_root_certs = security.caPem;

@@ -53,8 +53,10 @@ class Client:
         self.reconnect_seconds = reconnect_seconds
         self._uploaded = {}
         options = [("grpc.max_receive_message_length", _MAX_MESSAGE), ("grpc.max_send_message_length", _MAX_MESSAGE),
-                   ("grpc.initial_reconnect_backoff_ms", 100), ("grpc.min_reconnect_backoff_ms", 100),
-                   ("grpc.max_reconnect_backoff_ms", 1000)]
+                   ("grpc.initial_reconnect_backoff_ms", 100), ("grpc.max_reconnect_backoff_ms", 1000),
+                   # gRPC reads this as the time one connection attempt (with its TLS handshake) may
+                   # take, not as a back-off: 100 ms timed out handshakes with a loaded server.
+                   ("grpc.min_reconnect_backoff_ms", 20000)]
         if tls_ca is not None:
             creds = grpc.ssl_channel_credentials(
                 root_certificates=_read(tls_ca, "tls_ca"),
