@@ -64,6 +64,17 @@ class Distribution1D {
   float pmf(size_t i) const { return pmf_[i]; }
   // Returns the cell index; remapped gets u rescaled into [0,1) within the cell.
   size_t sample(float u, float* remapped = nullptr) const;
+  // sample(u) without the remap, inline for the few-cell distributions that light selection mostly
+  // sees (one call per RIS candidate); the same cell as sample(u).
+  size_t sampleIndex(float u) const {
+    const size_t n = pmf_.size();
+    if (n == 1) return 0;
+    if (n > 8) return sample(u);
+    size_t i = 0;
+    for (size_t j = 1; j < n; ++j) i += size_t(cdf_[j] <= double(u));
+    while (pmf_[i] == 0.f && i > 0) --i;
+    return i;
+  }
 
  private:
   std::vector<float> pmf_;

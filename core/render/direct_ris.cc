@@ -46,7 +46,7 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
       c.pickDim = sampler.reserve1D();
       c.ray = -1;
       c.delta = nullptr;
-      const size_t li = selection.sample(uSel);
+      const size_t li = selection.sampleIndex(uSel);
       c.pmf = selection.pmf(li);
       if (!(c.pmf > 0.f)) {
         c.target = 0.f;
@@ -76,6 +76,7 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
     packet.trace(scene);
     for (int j = 0; j < n; ++j)  // the delta lights' answers first: later candidates of a light read them
       if (batch[j].delta && batch[j].delta->occluded == kQueued) batch[j].delta->occluded = packet.blocked(batch[j].ray) ? 1 : 0;
+    int kept = -1;  // the batch's last kept candidate: copied out once, after the batch
     for (int j = 0; j < n; ++j) {
       const Candidate& c = batch[j];
       r.M += 1.f;
@@ -84,10 +85,12 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
       const bool blocked = visibilityInTarget && c.target > 0.f && (c.delta ? c.delta->occluded > 0 : packet.blocked(c.ray));
       const double w = c.target > 0.f && !blocked ? double(c.target) / (double(c.pmf) * double(ls.pdfNative)) : 0.0;
       if (!(w > 0.0)) continue;
-      if (r.stream(ls.ref, w, c.target, sampler.value1D(c.pickDim))) {
-        chosen = ls;
-        chosenF = c.delta ? c.delta->f : c.f;
-      }
+      if (r.stream(ls.ref, w, c.target, sampler.value1D(c.pickDim))) kept = j;
+    }
+    if (kept >= 0) {
+      const Candidate& c = batch[kept];
+      chosen = c.delta ? c.delta->ls : c.ls;
+      chosenF = c.delta ? c.delta->f : c.f;
     }
   }
   r.finalize(r.M);  // W = wSum / (M p_hat(y)); zero when no candidate had a positive target
