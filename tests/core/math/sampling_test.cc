@@ -132,8 +132,9 @@ size_t cellByScan(const std::vector<float>& w, float u) {
 
 TEST(Distribution1D, LookupPicksTheCellHoldingU) {
   // Small tables are scanned, larger ones use a guide table: both must agree with the scan,
-  // including at the cells' exact boundaries and around runs of empty cells.
-  for (size_t n : {3, 8, 9, 64, 1000}) {
+  // including at the cells' exact boundaries and around runs of empty cells; so must the inline
+  // sampleIndex that light selection uses.
+  for (size_t n : {1, 2, 3, 8, 9, 64, 1000}) {
     std::vector<float> w(n);
     for (size_t i = 0; i < n; ++i) w[i] = (i % 7 == 2 || i % 11 == 5) ? 0.f : float(1 + (i * i) % 13) * (i < n / 3 ? 20.f : 1.f);
     Distribution1D d(w);
@@ -154,6 +155,7 @@ TEST(Distribution1D, LookupPicksTheCellHoldingU) {
       float remapped = -1.f;
       size_t got = d.sample(u, &remapped);
       ASSERT_EQ(got, cellByScan(w, u)) << "n " << n << " u " << u;
+      ASSERT_EQ(d.sampleIndex(u), got) << "n " << n << " u " << u;
       EXPECT_GT(d.pmf(got), 0.f);
       EXPECT_GE(remapped, 0.f);
       EXPECT_LT(remapped, 1.f);
