@@ -25,6 +25,7 @@ struct CameraSampleInput {
   uint64_t pixel = 0;
   int slot = 0;  // which of the pixel's spp reservoir slots the sample reads hints from
   Vec3 o, d;     // the camera ray
+  const PrimaryHit* primary = nullptr;  // its closest hit, when the driver traced it already
 };
 
 // Per-thread counters an estimator adds to.

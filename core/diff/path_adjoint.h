@@ -103,17 +103,19 @@ class PathAdjointVisitor {
 };
 
 // One camera path: its radiance and, with `grad` set, adjoint * dL/dtheta added to it. The walk is
-// the same with and without `grad` (equal samplers give equal radiance).
+// the same with and without `grad` (equal samplers give equal radiance). `primary`: the camera
+// ray's hit when traced beforehand (walkPath).
 template <class Direct>
 Rgb walkCameraPath(const Scene& scene, const ParameterRegistry* params, Vec3 o, Vec3 d, Sampler& sampler, const WalkSettings& s,
-                   Direct& direct, PathContext* ctx, Rgb adjoint = Rgb(0.f), PathGradient* grad = nullptr) {
+                   Direct& direct, PathContext* ctx, Rgb adjoint = Rgb(0.f), PathGradient* grad = nullptr,
+                   const PrimaryHit* primary = nullptr) {
   if (!grad) {
     RadianceVisitor v;
-    walkPath(scene, o, d, sampler, s, direct, v, ctx);
+    walkPath(scene, o, d, sampler, s, direct, v, ctx, primary);
     return v.L;
   }
   PathAdjointVisitor v(scene, *params, adjoint, *grad, d);
-  walkPath(scene, o, d, sampler, s, direct, v, ctx);
+  walkPath(scene, o, d, sampler, s, direct, v, ctx, primary);
   v.finish();
   return v.radiance();
 }

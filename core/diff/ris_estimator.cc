@@ -19,7 +19,7 @@ class RisEstimator final : public InteriorEstimator {
              StoredReservoir*) const override {
     PathContext ctx{&counters.rays};
     RisDirect direct{scene_, candidates_, visibility_};
-    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad);
+    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad, in.primary);
   }
 
  private:

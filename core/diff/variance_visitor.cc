@@ -123,7 +123,7 @@ void VarianceVisitor::finish() {
 }
 
 Rgb walkVariancePath(const Scene& scene, const ParameterRegistry& params, Vec3 o, Vec3 d, Sampler& sampler, WalkSettings s,
-                     const VarianceWeights& weights, PathContext* ctx, PathGradient& grad) {
+                     const VarianceWeights& weights, PathContext* ctx, PathGradient& grad, const PrimaryHit* primary) {
   s.lightPmf = weights.pixelPmf;
   VarianceVisitor v(scene, params, weights, grad);
   auto direct = [&](const ShadingPoint& sp, int, Sampler& smp, PathContext* c, DirectPath& out) {
@@ -132,7 +132,7 @@ Rgb walkVariancePath(const Scene& scene, const ParameterRegistry& params, Vec3 o
     v.lightChoice(chosen);
     return ok;
   };
-  walkPath(scene, o, d, sampler, s, direct, v, ctx);
+  walkPath(scene, o, d, sampler, s, direct, v, ctx, primary);
   v.finish();
   return v.radiance();
 }

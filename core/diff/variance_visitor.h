@@ -178,8 +178,9 @@ class VarianceVisitor {
 };
 
 // One camera path of the variance pass: its radiance, with the weighted variance derivative added
-// to `grad`. `direct` is NEE + MIS (the only strategy with variance derivatives).
+// to `grad`. `direct` is NEE + MIS (the only strategy with variance derivatives). `primary`: the
+// camera ray's hit when traced beforehand (walkPath).
 Rgb walkVariancePath(const Scene& scene, const ParameterRegistry& params, Vec3 o, Vec3 d, Sampler& sampler, WalkSettings s,
-                     const VarianceWeights& weights, PathContext* ctx, PathGradient& grad);
+                     const VarianceWeights& weights, PathContext* ctx, PathGradient& grad, const PrimaryHit* primary = nullptr);
 
 }  // namespace invr

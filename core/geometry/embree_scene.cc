@@ -2,6 +2,7 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -42,6 +43,34 @@ void EmbreeScene::occludedPacket(int n, const Vec3* o, const Vec3* d, const floa
   for (int i = 0; i < n; ++i) {
     blocked[i] = r.tfar[i] < 0.f;  // Embree sets tfar = -inf on a hit
     if (log) log->record(scene_, o[i], d[i], 0.f, tmax[i], true, blocked[i]);
+  }
+}
+
+void EmbreeScene::intersectPacket(int n, const Vec3* o, const Vec3* d, RayHit* hits, bool* found) const {
+  if (n <= 0) return;
+  if (n > kPacket) throw std::logic_error("EmbreeScene::intersectPacket: more than 8 rays");
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(32) int valid[kPacket];
+  alignas(32) RTCRayHit8 rh;
+  for (int i = 0; i < kPacket; ++i) {
+    const int k = i < n ? i : 0;  // inactive lanes hold a copy of ray 0 (finite values)
+    valid[i] = i < n ? -1 : 0;
+    rh.ray.org_x[i] = o[k].x; rh.ray.org_y[i] = o[k].y; rh.ray.org_z[i] = o[k].z;
+    rh.ray.dir_x[i] = d[k].x; rh.ray.dir_y[i] = d[k].y; rh.ray.dir_z[i] = d[k].z;
+    rh.ray.tnear[i] = 0.f; rh.ray.tfar[i] = inf;
+    rh.ray.mask[i] = 0xffffffffu; rh.ray.flags[i] = 0; rh.ray.time[i] = 0.f; rh.ray.id[i] = unsigned(i);
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect8(valid, scene_, &ctx, &rh);
+  RayLog* log = RayLog::active();
+  for (int i = 0; i < n; ++i) {
+    found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+    if (found[i]) hits[i] = {rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i]};
+    if (log) log->record(scene_, o[i], d[i], 0.f, inf, false, found[i]);
   }
 }
 

@@ -62,6 +62,10 @@ class EmbreeScene {
   // rarely, for a ray grazing an edge, which Embree's packet and single-ray kernels may round
   // differently (on cornell: 3 of a 256 spp target's 65,536 pixels moved, by 2e-4 relative).
   static constexpr int kPacket = 8;
+  // Up to 8 closest-hit queries over [0, inf) as one coherent packet (rtcIntersect8), for rays
+  // that leave one region in nearby directions (a tile's camera rays). found[i] and hits[i] answer
+  // ray i as intersect() does, except, rarely, for a ray grazing an edge (as occludedPacket).
+  void intersectPacket(int n, const Vec3* o, const Vec3* d, RayHit* hits, bool* found) const;
   void occludedPacket(int n, const Vec3* o, const Vec3* d, const float* tmax, bool* blocked) const;
   // Whether a shading point's shadow rays are faster as packets than one by one in this scene.
   // Measured with invr-lab bench step (ReSTIR, docs/performance.md): packets saved 12-15 % of a

@@ -8,7 +8,8 @@
 
 namespace invr {
 
+// `primary`: the camera ray's closest hit when traced beforehand (core/render/path_walk.h).
 Rgb pathRadiance(const Scene& scene, Vec3 origin, Vec3 dir, Sampler& sampler, const RenderOptions& opt,
-                 PathContext* ctx = nullptr);
+                 PathContext* ctx = nullptr, const PrimaryHit* primary = nullptr);
 
 }  // namespace invr

@@ -15,7 +15,9 @@
 //       roulette(q, survived, channel, depth)                (channel: throughput RR's max channel, or -1;
 //                                                              depth: the vertex whose bounce it follows;
 //                                                              fixed survival reports q = 1 too, survived)
-// Random numbers are consumed in a fixed order, so equal samplers walk equal paths.
+// Random numbers are consumed in a fixed order, so equal samplers walk equal paths. `primary`, when
+// given, is the camera ray's closest hit traced beforehand (the walk then traces from the first
+// vertex on).
 #pragma once
 
 #include "core/render/direct_light.h"
@@ -53,7 +55,7 @@ struct WalkVertex {
 
 template <class Direct, class Visitor>
 void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSettings& s, Direct& direct, Visitor& v,
-              PathContext* ctx) {
+              PathContext* ctx, const PrimaryHit* primary = nullptr) {
   Rgb beta(1.f);
   bool specular = true;  // the camera or a delta lobe: emission is not covered by the direct strategy
   float prevBsdfPdf = 0.f;
@@ -74,7 +76,14 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
       ++ctx->stats->byDepth[depth];
     }
     SurfaceHit hit;
-    if (!scene.intersect(o, d, hit)) {
+    bool found;
+    if (depth == 0 && primary) {  // traced already, with the camera rays of its neighbours
+      found = primary->found;
+      if (found) hit = primary->hit;
+    } else {
+      found = scene.intersect(o, d, hit);
+    }
+    if (!found) {
       if (!specular && !s.bsdfMis) return;
       for (uint32_t li : scene.infiniteLights()) {
         const Light& l = scene.lights[li];

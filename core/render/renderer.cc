@@ -49,27 +49,52 @@ RenderResult renderView(const Scene& scene, int view, const RenderOptions& opt,
     RayStats& st = stats.local();
     uint64_t& bad = nonFinite.local();
     PathContext ctx{&st};
-    for (int y = r.rows().begin(); y < r.rows().end(); ++y)
-      for (int x = r.cols().begin(); x < r.cols().end(); ++x) {
-        double acc[3] = {0, 0, 0};
-        uint64_t pixel = uint64_t(y) * uint64_t(W) + uint64_t(x);
-        const uint64_t pixelHash = RngKey{opt.seed, 0, uint64_t(view), pixel, 0}.pixelHash();
-        for (int s = 0; s < opt.spp; ++s) {
-          // Every 256 samples: TBB hands out chunks far larger than a tile, and one pixel at a
-          // target's spp can be a second of work under a sanitizer.
-          if ((s & 255) == 0 && opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
-            cancelled = true;
-            return;
-          }
-          Sampler sampler = Sampler::forSample(opt.sampler, pixelHash, uint64_t(s));
-          const Vec2 film = sampler.next2D();
-          const float fx = float(x) + film.x, fy = float(y) + film.y;
-          Rgb L = pathRadiance(scene, cam.eye, cam.direction(fx, fy, W, H), sampler, opt, &ctx);
-          if (!isFinite(L)) { ++bad; continue; }
+    // The range's camera rays are queued in the order their samples are taken (pixel by pixel,
+    // sample by sample), traced together as packets (core/geometry/ray_queue.h), then walked in
+    // that order; each sampler's first draw (the film position) is taken when its ray is queued,
+    // so the walk continues the same stream.
+    CameraRayQueue queue;
+    Sampler samplers[CameraRayQueue::kCapacity];
+    int queuedX[CameraRayQueue::kCapacity], queuedY[CameraRayQueue::kCapacity], queuedSample[CameraRayQueue::kCapacity];
+    const int rx0 = r.cols().begin(), rx1 = r.cols().end(), ry1 = r.rows().end();
+    int nextX = rx0, nextY = r.rows().begin(), nextSample = 0;  // the next camera sample to queue
+    uint64_t pixelHash = 0;                                      // its pixel's
+    double acc[3] = {0, 0, 0};                                   // the pixel being walked
+    uint64_t taken = 0;
+    while (nextY < ry1) {
+      // Every 256 camera samples: TBB hands out chunks far larger than a tile, and one pixel at a
+      // target's spp can be a second of work under a sanitizer.
+      if ((taken++ & 3) == 0 && opt.cancel && opt.cancel->load(std::memory_order_relaxed)) {
+        cancelled = true;
+        return;
+      }
+      queue.clear();
+      int n = 0;
+      while (nextY < ry1 && !queue.full()) {
+        if (nextSample == 0) pixelHash = RngKey{opt.seed, 0, uint64_t(view), uint64_t(nextY) * uint64_t(W) + uint64_t(nextX), 0}.pixelHash();
+        samplers[n] = Sampler::forSample(opt.sampler, pixelHash, uint64_t(nextSample));
+        const Vec2 film = samplers[n].next2D();
+        queuedX[n] = nextX, queuedY[n] = nextY, queuedSample[n] = nextSample;
+        queue.push(cam.eye, cam.direction(float(nextX) + film.x, float(nextY) + film.y, W, H));
+        ++n;
+        if (++nextSample < opt.spp) continue;
+        nextSample = 0;
+        if (++nextX == rx1) nextX = rx0, ++nextY;
+      }
+      queue.trace(scene.accel);
+      for (int i = 0; i < n; ++i) {
+        const PrimaryHit primary = scene.primaryHit(queue, i);
+        Rgb L = pathRadiance(scene, queue.origin(i), queue.direction(i), samplers[i], opt, &ctx, &primary);
+        if (!isFinite(L)) {
+          ++bad;
+        } else {
           acc[0] += L.x; acc[1] += L.y; acc[2] += L.z;
         }
-        res.image.setRgb(x, y, Rgb(float(acc[0] / opt.spp), float(acc[1] / opt.spp), float(acc[2] / opt.spp)));
+        if (queuedSample[i] + 1 < opt.spp) continue;
+        res.image.setRgb(queuedX[i], queuedY[i], Rgb(float(acc[0] / opt.spp), float(acc[1] / opt.spp), float(acc[2] / opt.spp)));
+        acc[0] = acc[1] = acc[2] = 0;
       }
+    }
     size_t done = pixelsDone.fetch_add(r.rows().size() * r.cols().size()) + r.rows().size() * r.cols().size();
     if (progress) {
       std::lock_guard lock(progressMutex);

@@ -170,8 +170,7 @@ void Scene::replaceMesh(uint32_t m, TriangleMesh geometry) {
 bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   RayHit rh;
   if (!accel.intersect(o, d, 0.f, tmax, rh)) return false;
-  hit = surfaceAt(rh.mesh, rh.tri, rh.b1, rh.b2);
-  hit.t = rh.t;
+  hit = surfaceOf(rh);
   return true;
 }
 

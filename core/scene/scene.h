@@ -10,6 +10,7 @@
 
 #include "core/bsdf/bsdf.h"
 #include "core/geometry/embree_scene.h"
+#include "core/geometry/ray_queue.h"
 #include "core/lights/light.h"
 #include "core/scene/camera.h"
 #include "core/geometry/mesh.h"
@@ -24,6 +25,13 @@ struct SurfaceHit {
   Vec2 uv;
   uint32_t mesh = 0, tri = 0;
   float b1 = 0, b2 = 0, t = 0;
+};
+
+// A camera ray's closest hit, traced before its walk (the pass driver traces a tile's camera rays
+// together, core/geometry/ray_queue.h); `found` false: the ray left the scene.
+struct PrimaryHit {
+  SurfaceHit hit;
+  bool found = false;
 };
 
 // Offsets a ray origin off the surface on the side of direction d (avoids self-intersection
@@ -127,6 +135,19 @@ class Scene {
   Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return meshes[mesh].faceNormals[tri]; }
 
   bool intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax = std::numeric_limits<float>::infinity()) const;
+  // The surface point an Embree hit names (what intersect() gives for it).
+  SurfaceHit surfaceOf(const RayHit& rh) const {
+    SurfaceHit h = surfaceAt(rh.mesh, rh.tri, rh.b1, rh.b2);
+    h.t = rh.t;
+    return h;
+  }
+  // What queued camera ray i found, once the queue was traced against `accel`.
+  PrimaryHit primaryHit(const CameraRayQueue& queue, int i) const {
+    PrimaryHit p;
+    p.found = queue.found(i);
+    if (p.found) p.hit = surfaceOf(queue.hit(i));
+    return p;
+  }
   // The surface point with barycentrics (b1, b2) on a triangle, in the current geometry: how
   // reservoirs anchored to surfaces follow them when vertices move.
   SurfaceHit surfaceAt(uint32_t mesh, uint32_t tri, float b1, float b2) const;
