@@ -1,6 +1,7 @@
 // Warps from the unit square and discrete distributions.
 #pragma once
 
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -14,6 +15,23 @@ inline void sinCosQuarterPi(float x, float* s, float* c) {
   float x2 = x * x;
   *s = x * (1.f + x2 * (-1.f / 6.f + x2 * (1.f / 120.f + x2 * (-1.f / 5040.f + x2 * (1.f / 362880.f)))));
   *c = 1.f + x2 * (-0.5f + x2 * (1.f / 24.f + x2 * (-1.f / 720.f + x2 * (1.f / 40320.f + x2 * (-1.f / 3628800.f)))));
+}
+
+// A Binomial(n, p) count from one uniform u in [0, 1), by inversion of its CDF (O(n p) steps;
+// the smaller tail is walked, so p^n or (1-p)^n >= 2^-n stays representable for n <= 1000).
+inline int sampleBinomial(int n, double p, float u) {
+  if (!(p > 0.0) || n <= 0) return 0;
+  if (p >= 1.0) return n;
+  if (p > 0.5) return n - sampleBinomial(n, 1.0 - p, 1.f - u);  // 1 - u in (0, 1]: the same inversion from the top
+  const double q = 1.0 - p, ratio = p / q;
+  double pk = std::pow(q, double(n)), cdf = pk;
+  int k = 0;
+  while (double(u) >= cdf && k < n) {
+    pk *= double(n - k) / double(k + 1) * ratio;
+    ++k;
+    cdf += pk;
+  }
+  return k;
 }
 
 inline Vec3 sampleCosineHemisphere(Vec2 u) {

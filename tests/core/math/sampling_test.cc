@@ -243,4 +243,26 @@ TEST(Warps, CosineHemisphereStaysOnUnitHemisphere) {
   }
 }
 
+// Inversion of the binomial CDF: u on a fine stratified grid lands on each count k in a share of
+// the grid that is its probability C(n,k) p^k (1-p)^(n-k) to within one cell (1 / N), in both
+// tails (p above and below 1/2, where the smaller tail is walked) and at p = 0 and 1.
+TEST(Binomial, InversionGivesEachCountItsProbability) {
+  constexpr int N = 200000;
+  for (int n : {1, 2, 5, 8, 33, 64})
+    for (double p : {0.0, 0.03, 0.3, 0.5, 0.77, 0.999, 1.0}) {
+      std::vector<int> hits(size_t(n) + 1, 0);
+      for (int i = 0; i < N; ++i) {
+        const int k = sampleBinomial(n, p, (float(i) + 0.5f) / float(N));
+        ASSERT_GE(k, 0);
+        ASSERT_LE(k, n);
+        ++hits[size_t(k)];
+      }
+      for (int k = 0; k <= n; ++k) {
+        const double exact = p == 0.0 ? (k == 0) : p == 1.0 ? (k == n)
+                             : std::exp(std::lgamma(n + 1.0) - std::lgamma(k + 1.0) - std::lgamma(n - k + 1.0) + k * std::log(p) + (n - k) * std::log1p(-p));
+        EXPECT_NEAR(double(hits[size_t(k)]) / N, exact, 1.5 / N + 1e-9) << "n " << n << " p " << p << " k " << k;
+      }
+    }
+}
+
 }  // namespace invr

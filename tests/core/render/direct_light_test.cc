@@ -114,22 +114,62 @@ void compareRisWithNee(const std::string& zooName, int maxDepth) {
 // the same reservoir, chosen sample and shadow-ray count at every shading point, for both
 // samplers, with and without visibility in the target, on scenes whose shadow rays go as packets
 // (cornell), one by one (tree), to delta lights only (oxalis) and to an environment (spot).
+// With at most 8 lights and 64 candidates the candidates' lights come as counts (a multinomial as
+// binomials, light by light), and a delta light's k candidates enter as one of weight k; the loop
+// below draws its counts with binomial probabilities of its own (log-gamma) and streams the same
+// groups one by one. With more candidates each selects its light, as Alg. 1 writes it.
+int binomialByLogGamma(int n, double p, float u) {
+  if (!(p > 0.0)) return 0;
+  if (p >= 1.0) return n;
+  double cdf = 0;
+  for (int k = 0; k < n; ++k) {
+    cdf += std::exp(std::lgamma(n + 1.0) - std::lgamma(k + 1.0) - std::lgamma(n - k + 1.0) + k * std::log(p) + (n - k) * std::log1p(-p));
+    if (double(u) < cdf) return k;
+  }
+  return n;
+}
+
 Reservoir streamRisOneByOne(const Scene& scene, const ShadingPoint& sp, Sampler& sampler, int candidates, bool visibility,
                             PathContext* ctx, LightSample& chosen, Rgb& chosenF, bool& nonFinite) {
   DeltaLightCache deltas;
   Reservoir r;
   if (scene.lights.empty()) return r;
-  for (int m = 0; m < candidates; ++m) {
-    const float uSel = sampler.next1D();
-    const Vec2 d2 = sampler.next2D();
-    const float uPick = sampler.next1D();
-    const size_t li = scene.lightSelection().sample(uSel);
-    const float pmf = scene.lightSelection().pmf(li);
-    if (!(pmf > 0.f)) {
-      r.M += 1.f;
-      continue;
+  const Distribution1D& sel = scene.lightSelection();
+  const size_t L = scene.lights.size();
+  const bool counted = L <= 8 && candidates <= 64;
+  std::vector<std::pair<size_t, int>> groups;  // (light, candidates it stands for), in stream order
+  if (counted) {
+    std::vector<int> counts(L, 0);
+    int remaining = candidates;
+    for (size_t i = 0; i < L; ++i) {
+      double rest = 0;
+      for (size_t k = i + 1; k < L; ++k) rest += sel.pmf(k);
+      if (i + 1 == L || rest <= 0.0) {
+        counts[i] = remaining;
+        break;
+      }
+      const int c = binomialByLogGamma(remaining, sel.pmf(i) / (sel.pmf(i) + rest), sampler.next1D());
+      counts[i] = c;
+      remaining -= c;
     }
-    DeltaLightCache::Entry* e = scene.lights[li].isDelta() ? deltas.at(scene, sp, uint32_t(li)) : nullptr;
+    for (size_t i = 0; i < L; ++i) {
+      if (scene.lights[i].isDelta()) {
+        if (counts[i] > 0) groups.push_back({i, counts[i]});
+      } else {
+        for (int k = 0; k < counts[i]; ++k) groups.push_back({i, 1});
+      }
+    }
+  }
+  for (int m = 0; counted ? m < int(groups.size()) : m < candidates; ++m) {
+    const size_t li = counted ? groups[size_t(m)].first : sel.sample(sampler.next1D());
+    const int count = counted ? groups[size_t(m)].second : 1;
+    const bool delta = scene.lights[li].isDelta();
+    const Vec2 d2 = counted && delta ? Vec2(0.f, 0.f) : sampler.next2D();
+    const float uPick = sampler.next1D();
+    const float pmf = sel.pmf(li);
+    r.M += float(count);
+    if (!(pmf > 0.f)) continue;
+    DeltaLightCache::Entry* e = delta ? deltas.at(scene, sp, uint32_t(li)) : nullptr;
     LightSample fresh;
     Rgb f(0.f);
     float target;
@@ -146,8 +186,8 @@ Reservoir streamRisOneByOne(const Scene& scene, const ShadingPoint& sp, Sampler&
     }
     if (target > 0.f && visibility && (e ? DeltaLightCache::occluded(*e, scene, sp, ctx) : traceShadow(scene, sp, ls, ctx)))
       target = 0.f;
-    const double w = target > 0.f ? double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
-    if (r.update(ls.ref, w, target, uPick)) {
+    const double w = target > 0.f ? double(count) * double(target) / (double(pmf) * double(ls.pdfNative)) : 0.0;
+    if (r.stream(ls.ref, w, target, uPick)) {
       chosen = ls;
       chosenF = e ? e->f : f;
     }
@@ -181,7 +221,8 @@ TEST(DirectLight, BatchedRisCandidatesGiveTheNumbersOfOneByOne) {
             ShadingPoint sp{&hit, &bsdf, shadingFrame(hit, bsdf, -d), Vec3(), -d};
             sp.wo = sp.frame.toLocal(-d);
             s0.beginDomain(SampleDomain::directLight(0));
-            const int candidates = 1 + (px + py) % 19;  // batches of every fill, and several batches
+            // Batches of every fill and several batches; every fifth point past the counted limit.
+            const int candidates = 1 + (px + py) % 19 + ((px / 7 + py / 7) % 5 == 0 ? 64 : 0);
             Sampler s1 = s0, s2 = s0;
             RayStats rays1, rays2;
             PathContext ctx1{&rays1}, ctx2{&rays2};
