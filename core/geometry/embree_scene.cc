@@ -18,6 +18,23 @@ EmbreeScene::EmbreeScene() {
   if (!device_) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
 }
 
+namespace {
+
+// The lanes of an 8-wide packet from n <= 8 rays over [0, tmax[i]] (tmax null: infinite); the
+// inactive lanes hold a copy of ray 0 (finite values) and are masked off in `valid`.
+void fillPacket(int n, const Vec3* o, const Vec3* d, const float* tmax, RTCRay8& r, int* valid) {
+  for (int i = 0; i < EmbreeScene::kPacket; ++i) {
+    const int k = i < n ? i : 0;
+    valid[i] = i < n ? -1 : 0;
+    r.org_x[i] = o[k].x; r.org_y[i] = o[k].y; r.org_z[i] = o[k].z;
+    r.dir_x[i] = d[k].x; r.dir_y[i] = d[k].y; r.dir_z[i] = d[k].z;
+    r.tnear[i] = 0.f; r.tfar[i] = tmax ? tmax[k] : std::numeric_limits<float>::infinity();
+    r.mask[i] = 0xffffffffu; r.flags[i] = 0; r.time[i] = 0.f; r.id[i] = unsigned(i);
+  }
+}
+
+}  // namespace
+
 void EmbreeScene::occludedPacket(int n, const Vec3* o, const Vec3* d, const float* tmax, bool* blocked) const {
   if (n <= 0) return;
   if (n == 1) {  // a packet of one costs more than a single ray
@@ -30,14 +47,7 @@ void EmbreeScene::occludedPacket(int n, const Vec3* o, const Vec3* d, const floa
   ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   alignas(32) int valid[kPacket];
   alignas(32) RTCRay8 r;
-  for (int i = 0; i < kPacket; ++i) {
-    const int k = i < n ? i : 0;  // inactive lanes hold a copy of ray 0 (finite values)
-    valid[i] = i < n ? -1 : 0;
-    r.org_x[i] = o[k].x; r.org_y[i] = o[k].y; r.org_z[i] = o[k].z;
-    r.dir_x[i] = d[k].x; r.dir_y[i] = d[k].y; r.dir_z[i] = d[k].z;
-    r.tnear[i] = 0.f; r.tfar[i] = tmax[k];
-    r.mask[i] = 0xffffffffu; r.flags[i] = 0; r.time[i] = 0.f; r.id[i] = unsigned(i);
-  }
+  fillPacket(n, o, d, tmax, r, valid);
   rtcOccluded8(valid, scene_, &ctx, &r);
   RayLog* log = RayLog::active();
   for (int i = 0; i < n; ++i) {
@@ -55,13 +65,8 @@ void EmbreeScene::intersectPacket(int n, const Vec3* o, const Vec3* d, RayHit* h
   ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   alignas(32) int valid[kPacket];
   alignas(32) RTCRayHit8 rh;
+  fillPacket(n, o, d, nullptr, rh.ray, valid);
   for (int i = 0; i < kPacket; ++i) {
-    const int k = i < n ? i : 0;  // inactive lanes hold a copy of ray 0 (finite values)
-    valid[i] = i < n ? -1 : 0;
-    rh.ray.org_x[i] = o[k].x; rh.ray.org_y[i] = o[k].y; rh.ray.org_z[i] = o[k].z;
-    rh.ray.dir_x[i] = d[k].x; rh.ray.dir_y[i] = d[k].y; rh.ray.dir_z[i] = d[k].z;
-    rh.ray.tnear[i] = 0.f; rh.ray.tfar[i] = inf;
-    rh.ray.mask[i] = 0xffffffffu; rh.ray.flags[i] = 0; rh.ray.time[i] = 0.f; rh.ray.id[i] = unsigned(i);
     rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
   }
