@@ -39,7 +39,9 @@ void runBenchRays(const RaysArgs& a) {
   RenderResult recorded;
   {
     RayLog log;
+    scene->observeRays(&log);
     recorded = renderView(*scene, 0, opt);
+    scene->observeRays(nullptr);
     rays = log.take();
   }
   // Embree's modes on the same rays, split by kind (camera, bounce, shadow), each kind's rays in

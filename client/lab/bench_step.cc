@@ -42,12 +42,15 @@ StepRun runStep(const Problem& p, const std::vector<Image>& targets, int warmup,
   StepEngine engine(p, targets);
   const uint64_t measured = measuredCounter(p, warmup);
   for (uint64_t k = 0; k < measured; ++k) engine.evaluate(k);
-  if (log) *log = std::make_unique<RayLog>();
+  if (log) {
+    *log = std::make_unique<RayLog>();
+    p.scene->observeRays(log->get());
+  }
   Stopwatch clock;
   StepRun run;
   run.stats = engine.evaluate(measured);
   run.seconds = clock.seconds();
-  if (log) (*log)->stop();  // the BVHs stay retained for the replay; nothing else is logged
+  if (log) p.scene->observeRays(nullptr);  // the BVHs stay retained for the replay; nothing else is logged
   return run;
 }
 

@@ -9,7 +9,7 @@
 #include "core/diff/gradient_stats.h"
 #include "core/diff/pass_driver.h"
 #include "core/diff/render_cost.h"
-#include "core/geometry/ray_log.h"
+#include "core/geometry/ray_observer.h"
 #include "core/error.h"
 #include "core/render/path_walk.h"
 #include "core/render/renderer.h"
@@ -273,7 +273,7 @@ void GradientEngine::boundaryPasses(Step& s) {
   const GradientRequest& req = s.req;
   if (boundaryTerms_.empty() || req.renderOnly) return;
   Stopwatch clock;
-  const RayLog::BoundaryPhase boundaryRays;  // `invr-lab bench step` counts these rays apart
+  const RayObserver::BoundaryPhase boundaryRays(scene_.rayObserver());  // `invr-lab bench step` counts these rays apart
   v1::GradientStats& st = s.out.stats;
   const int samples = opt_.boundary.samplesFor(scene_.width, scene_.height);
   const BoundaryStep setup{scene_, params_, topology_, opt_, s.session, req.views, req.allSessionViews};

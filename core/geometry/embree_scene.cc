@@ -49,10 +49,9 @@ void EmbreeScene::occludedPacket(int n, const Vec3* o, const Vec3* d, const floa
   alignas(32) RTCRay8 r;
   fillPacket(n, o, d, tmax, r, valid);
   rtcOccluded8(valid, scene_, &ctx, &r);
-  RayLog* log = RayLog::active();
   for (int i = 0; i < n; ++i) {
     blocked[i] = r.tfar[i] < 0.f;  // Embree sets tfar = -inf on a hit
-    if (log) log->record(scene_, o[i], d[i], 0.f, tmax[i], true, blocked[i]);
+    if (observer_) observer_->record(scene_, o[i], d[i], 0.f, tmax[i], true, blocked[i]);
   }
 }
 
@@ -71,11 +70,10 @@ void EmbreeScene::intersectPacket(int n, const Vec3* o, const Vec3* d, RayHit* h
     rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
   }
   rtcIntersect8(valid, scene_, &ctx, &rh);
-  RayLog* log = RayLog::active();
   for (int i = 0; i < n; ++i) {
     found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
     if (found[i]) hits[i] = {rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i]};
-    if (log) log->record(scene_, o[i], d[i], 0.f, inf, false, found[i]);
+    if (observer_) observer_->record(scene_, o[i], d[i], 0.f, inf, false, found[i]);
   }
 }
 

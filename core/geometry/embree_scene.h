@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "core/geometry/mesh.h"
-#include "core/geometry/ray_log.h"
+#include "core/geometry/ray_observer.h"
 
 namespace invr {
 
@@ -39,7 +39,7 @@ class EmbreeScene {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &ctx, &rh);
-    if (RayLog* log = RayLog::active()) log->record(scene_, o, d, tmin, tmax, false, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID);
+    if (observer_) observer_->record(scene_, o, d, tmin, tmax, false, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     hit = {rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v};
     return true;
@@ -54,7 +54,7 @@ class EmbreeScene {
     r.mask = 0xffffffffu; r.flags = 0; r.time = 0.f; r.id = 0;
     rtcOccluded1(scene_, &ctx, &r);
     const bool blocked = r.tfar < 0.f;  // Embree sets tfar = -inf on a hit
-    if (RayLog* log = RayLog::active()) log->record(scene_, o, d, tmin, tmax, true, blocked);
+    if (observer_) observer_->record(scene_, o, d, tmin, tmax, true, blocked);
     return blocked;
   }
   // Up to 8 occlusion queries as one packet (rtcOccluded8), for coherent rays such as a shading
@@ -74,10 +74,15 @@ class EmbreeScene {
   static constexpr size_t kShadowPacketTriangles = 512;
   bool shadowPacketsPay() const { return shadowPacketsPay_; }
   RTCScene handle() const { return scene_; }
+  // Hands every later query to `o` (null: to nobody). Set only while no thread traces. Const:
+  // watching the rays is not part of the geometry (shared, const BVHs of poses are observed too).
+  void observe(RayObserver* o) const { observer_ = o; }
+  RayObserver* observer() const { return observer_; }
 
  private:
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
+  mutable RayObserver* observer_ = nullptr;
   std::vector<RTCGeometry> geoms_;
   bool shadowPacketsPay_ = false;
 };

@@ -4,12 +4,8 @@
 
 #include <algorithm>
 #include <mutex>
-#include <stdexcept>
 
 namespace invr {
-
-std::atomic<RayLog*> RayLog::active_{nullptr};
-std::atomic<bool> RayLog::boundary_{false};
 
 struct RayLog::Impl {
   struct PerThread {
@@ -28,19 +24,10 @@ struct RayLog::Impl {
   }
 };
 
-RayLog::RayLog() : impl_(std::make_unique<Impl>()) {
-  RayLog* expected = nullptr;
-  if (!active_.compare_exchange_strong(expected, this)) throw std::logic_error("RayLog: another log is active");
-}
+RayLog::RayLog() : impl_(std::make_unique<Impl>()) {}
 
 RayLog::~RayLog() {
-  stop();
   for (RTCScene s : impl_->retained) rtcReleaseScene(s);
-}
-
-void RayLog::stop() {
-  RayLog* self = this;
-  active_.compare_exchange_strong(self, nullptr);
 }
 
 void RayLog::record(RTCScene scene, Vec3 o, Vec3 d, float tnear, float tfar, bool shadow, bool hit) {
@@ -49,7 +36,7 @@ void RayLog::record(RTCScene scene, Vec3 o, Vec3 d, float tnear, float tfar, boo
     impl_->retain(scene);
     t.lastScene = scene;
   }
-  t.rays.push_back({scene, o, d, tnear, tfar, shadow, hit, boundary_.load(std::memory_order_relaxed)});
+  t.rays.push_back({scene, o, d, tnear, tfar, shadow, hit, inBoundaryPhase()});
 }
 
 std::vector<LoggedRay> RayLog::take() {

@@ -1,16 +1,15 @@
-// An optional log of every ray traced through any EmbreeScene, for `invr-lab bench step`, which
+// A log of every ray traced through the scenes it observes, for `invr-lab bench step`, which
 // replays a gradient step's rays through bare Embree to measure the step against its ray-tracing
-// bound. Off unless a RayLog is active (alive and not stopped): tracing then pays one relaxed
-// atomic load per ray.
+// bound. Attach it with Scene::observeRays (or EmbreeScene::observe) and detach it before reading.
 #pragma once
 
 #include <embree3/rtcore.h>
 
-#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "core/geometry/ray_observer.h"
 #include "core/math/vec.h"
 
 namespace invr {
@@ -21,41 +20,26 @@ struct LoggedRay {
   float tnear, tfar;
   bool shadow;    // an occlusion query (rtcOccluded1), else a closest hit (rtcIntersect1)
   bool hit;       // what the query found (blocked, or a surface hit)
-  bool boundary;  // traced while a boundary term ran (RayLog::BoundaryPhase)
+  bool boundary;  // traced while a boundary term ran (RayObserver::BoundaryPhase)
 };
 
-class RayLog {
+class RayLog final : public RayObserver {
  public:
-  // Becomes the active log; at most one at a time (throws std::logic_error otherwise). Create,
-  // stop and destroy logs only while no thread traces (between parallel loops).
   RayLog();
-  ~RayLog();
+  ~RayLog() override;
   RayLog(const RayLog&) = delete;
   RayLog& operator=(const RayLog&) = delete;
 
-  // Stops recording (no longer the active log) but keeps the BVHs it saw alive for a replay.
-  void stop();
-  // Every thread's rays, each thread's in the order it traced them; empties the log.
+  // Every thread's rays, each thread's in the order it traced them; empties the log. Call while
+  // no thread traces through an observed scene. The BVHs the rays name stay alive as long as the
+  // log does (a pose's BVH may go before the replay).
   std::vector<LoggedRay> take();
 
-  static RayLog* active() { return active_.load(std::memory_order_relaxed); }
-  void record(RTCScene scene, Vec3 o, Vec3 d, float tnear, float tfar, bool shadow, bool hit);
-
-  // Marks the rays traced while it lives as the boundary terms' (the engine runs its phases one
-  // after another, so a process-wide flag is enough; it matters only while a log is active).
-  class BoundaryPhase {
-   public:
-    BoundaryPhase() { boundary_.store(true, std::memory_order_relaxed); }
-    ~BoundaryPhase() { boundary_.store(false, std::memory_order_relaxed); }
-    BoundaryPhase(const BoundaryPhase&) = delete;
-    BoundaryPhase& operator=(const BoundaryPhase&) = delete;
-  };
+  void record(RTCScene scene, Vec3 o, Vec3 d, float tnear, float tfar, bool shadow, bool hit) override;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  static std::atomic<RayLog*> active_;
-  static std::atomic<bool> boundary_;
 };
 
 }  // namespace invr

@@ -10,32 +10,42 @@ LightSample samplePointOrSpot(const Light& light, Vec3 p);
 LightSample sampleEnvironment(const Light& light, Vec2 u2);
 LightSample environmentSampleAt(const Light& light, Vec3 w);
 
-LightSample sampleLight(const Light& light, const TriangleMesh* emitter, Vec3 p, Vec2 u2, uint32_t lightIndex) {
-  LightSample s;
+namespace {
+
+// Each kind's sample, returned straight into the caller's object (assigning a call's result to a
+// declared sample would build it elsewhere and copy it: 88 bytes per light sample).
+LightSample sampleOfKind(const Light& light, const TriangleMesh* emitter, Vec3 p, Vec2 u2) {
   switch (light.kind) {
     case LightKind::Area:
       if (!emitter) throw std::logic_error("sampleLight: an area light needs its emitter mesh");
-      s = sampleAreaLight(light, *emitter, p, u2);
-      break;
+      return sampleAreaLight(light, *emitter, p, u2);
     case LightKind::Point:
-    case LightKind::Spot: s = samplePointOrSpot(light, p); break;
-    default: s = sampleEnvironment(light, u2); break;
+    case LightKind::Spot: return samplePointOrSpot(light, p);
+    default: return sampleEnvironment(light, u2);
   }
+}
+
+LightSample evalOfKind(const Light& light, const TriangleMesh* emitter, const LightSampleRef& ref, Vec3 p) {
+  switch (light.kind) {
+    case LightKind::Area:
+      if (!emitter) throw std::logic_error("evalLightSample: an area light needs its emitter mesh");
+      return areaLightSampleAt(light, *emitter, p, ref.tri, ref.b1, ref.b2);
+    case LightKind::Point:
+    case LightKind::Spot: return samplePointOrSpot(light, p);
+    default: return environmentSampleAt(light, ref.direction());
+  }
+}
+
+}  // namespace
+
+LightSample sampleLight(const Light& light, const TriangleMesh* emitter, Vec3 p, Vec2 u2, uint32_t lightIndex) {
+  LightSample s = sampleOfKind(light, emitter, p, u2);
   s.ref.light = lightIndex;
   return s;
 }
 
 LightSample evalLightSample(const Light& light, const TriangleMesh* emitter, const LightSampleRef& ref, Vec3 p) {
-  LightSample s;
-  switch (light.kind) {
-    case LightKind::Area:
-      if (!emitter) throw std::logic_error("evalLightSample: an area light needs its emitter mesh");
-      s = areaLightSampleAt(light, *emitter, p, ref.tri, ref.b1, ref.b2);
-      break;
-    case LightKind::Point:
-    case LightKind::Spot: s = samplePointOrSpot(light, p); break;
-    default: s = environmentSampleAt(light, ref.direction()); break;
-  }
+  LightSample s = evalOfKind(light, emitter, ref, p);
   s.ref = ref;
   return s;
 }

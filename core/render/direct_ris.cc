@@ -129,7 +129,10 @@ Reservoir streamRis(const Scene& scene, const ShadingPoint& sp, Sampler& sampler
         c.target = c.delta->target;
       } else {
         const Vec2 d2 = delta ? Vec2(0.f, 0.f) : sampler.value2D(pointDim);  // a delta light's point does not depend on it
-        c.ls = sampleLight(light, scene, sp.hit->p, Vec2(d2.y, d2.x), uint32_t(li));  // y drawn first: the independent streams' order
+        // Constructed in place (the union member has no object yet): assigning would build the
+        // sample (88 bytes) on the stack and copy it, a store-forwarding stall measured at 7 % of
+        // streamRis on cornell RIS.
+        ::new (&c.ls) LightSample(sampleLight(light, scene, sp.hit->p, Vec2(d2.y, d2.x), uint32_t(li)));  // y drawn first: the independent streams' order
         c.target = risTarget(sp, c.ls, &c.f);
       }
       if (!std::isfinite(c.target)) {  // reported, not resampled: the caller drops the whole sample

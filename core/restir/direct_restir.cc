@@ -86,15 +86,10 @@ bool sampleDirectRestir(const Scene& scene, const ShadingPoint& sp, Sampler& sam
     c.M += nbM[i];
     if (!(q.r.W > 0.f)) continue;
     DeltaLightCache::Entry* e = scene.lights[q.r.y.light].isDelta() ? deltas.at(scene, sp, q.r.y.light) : nullptr;
-    LightSample reused;
+    // Initialised from the call (not assigned after): no copy of the whole sample.
+    const LightSample reused = e ? LightSample() : evalLightSample(scene, q.r.y, sp.hit->p);
     Rgb reusedF(0.f);
-    float t;
-    if (e) {
-      t = e->target;
-    } else {
-      reused = evalLightSample(scene, q.r.y, sp.hit->p);
-      t = risTarget(sp, reused, &reusedF);
-    }
+    float t = e ? e->target : risTarget(sp, reused, &reusedF);
     if (!std::isfinite(t)) {
       poisoned = true;
       t = 0.f;

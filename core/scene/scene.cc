@@ -92,6 +92,7 @@ void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
       if (restAccel_.size() != meshes.size()) restAccel_.resize(meshes.size());
       restAccel_[m] = std::make_unique<EmbreeScene>();
       restAccel_[m]->build({meshes[m]}, {true});  // robust traversal, as for the moving copy
+      restAccel_[m]->observe(accel.observer());
     }
     rebuild = true;
   }
@@ -174,6 +175,15 @@ bool Scene::intersect(Vec3 o, Vec3 d, SurfaceHit& hit, float tmax) const {
   return true;
 }
 
+void Scene::observeRays(RayObserver* o) {
+  accel.observe(o);
+  for (const auto& rest : restAccel_)
+    if (rest) rest->observe(o);
+  std::lock_guard<std::mutex> lock(deformedMutex_);
+  for (const auto& g : deformedCache_)
+    if (g) g->bvh.observe(o);
+}
+
 PoseSnapshot Scene::pose() const {
   PoseSnapshot s;
   s.version = geometryVersion_;
@@ -194,6 +204,7 @@ PoseSnapshot Scene::pose() const {
       if (accelerated_) {
         TriangleMesh copy = meshes[m];
         g->bvh.build({copy}, {true});  // robust traversal, as for the moving copy
+        g->bvh.observe(accel.observer());
       }
       cached = std::move(g);
     }

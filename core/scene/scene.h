@@ -187,6 +187,12 @@ class Scene {
 
   EmbreeScene accel;
 
+  // Hands every ray traced through this scene's BVHs (the current one, the rest poses of moving
+  // meshes, the deformed poses kept for support tests, and those built later) to `o`; null
+  // detaches. Call only while no thread traces.
+  void observeRays(RayObserver* o);
+  RayObserver* rayObserver() const { return accel.observer(); }
+
  private:
   void computeFaceNormals(uint32_t mesh);
 

@@ -4,9 +4,13 @@
 #include <tbb/parallel_for.h>
 
 #include <memory>
-#include <stdexcept>
+#include <set>
+#include <string>
 
+#include "core/diff/gradient_engine.h"
 #include "core/geometry/embree_scene.h"
+#include "core/job/problem.h"
+#include "core/job/zoo_jobs.h"
 #include "core/render/renderer.h"
 #include "core/scene/scene_builder.h"
 #include "core/scene/zoo.h"
@@ -22,26 +26,30 @@ std::unique_ptr<EmbreeScene> quadAt(float z) {
   return accel;
 }
 
-TEST(RayLog, RecordsEveryQueryAsTracedOnlyWhileAlive) {
-  auto accel = quadAt(0);
+TEST(RayLog, RecordsEveryQueryOfTheScenesItObservesWhileAttached) {
+  auto accel = quadAt(0), other = quadAt(1);
   RayHit hit;
   EXPECT_TRUE(accel->intersect({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 100, hit));  // before any log: not recorded
   std::vector<LoggedRay> rays;
+  RayLog log, second;
+  accel->observe(&log);
+  other->observe(&second);  // two logs at once, each of its own scene's rays
+  EXPECT_EQ(accel->observer(), &log);
+  EXPECT_TRUE(accel->intersect({0.2f, 0.3f, 5}, {0, 0, -1}, 0.5f, 100, hit));
   {
-    RayLog log;
-    EXPECT_EQ(RayLog::active(), &log);
-    EXPECT_THROW(RayLog second, std::logic_error);
-    EXPECT_TRUE(accel->intersect({0.2f, 0.3f, 5}, {0, 0, -1}, 0.5f, 100, hit));
-    {
-      const RayLog::BoundaryPhase boundary;
-      EXPECT_FALSE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 4.5f));
-    }
-    EXPECT_TRUE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 5.5f));
-    rays = log.take();
-    EXPECT_TRUE(log.take().empty());  // take() empties the log
+    const RayObserver::BoundaryPhase boundary(&log);
+    EXPECT_FALSE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 4.5f));
+    EXPECT_TRUE(other->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 100));  // another log's phase is its own
   }
-  EXPECT_EQ(RayLog::active(), nullptr);
-  EXPECT_FALSE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 100) && RayLog::active());
+  EXPECT_TRUE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 5.5f));
+  accel->observe(nullptr);
+  EXPECT_TRUE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 100));  // detached: not recorded
+  rays = log.take();
+  EXPECT_TRUE(log.take().empty());  // take() empties the log
+  const std::vector<LoggedRay> others = second.take();
+  ASSERT_EQ(others.size(), 1u);
+  EXPECT_EQ(others[0].scene, other->handle());
+  EXPECT_FALSE(others[0].boundary);
   ASSERT_EQ(rays.size(), 3u);
   EXPECT_EQ(rays[0].scene, accel->handle());
   EXPECT_FALSE(rays[0].shadow);
@@ -60,16 +68,14 @@ TEST(RayLog, RecordsEveryQueryAsTracedOnlyWhileAlive) {
   EXPECT_FALSE(rays[2].boundary);
 }
 
-TEST(RayLog, StopsRecordingButKeepsTheBvhsItSawAliveForTheReplay) {
+TEST(RayLog, KeepsTheBvhsItSawAliveForTheReplay) {
   RayLog log;
   RTCScene handle;
   {
     auto accel = quadAt(-2);  // like a pose's BVH, gone before the replay
+    accel->observe(&log);
     handle = accel->handle();
     EXPECT_TRUE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 100));
-    log.stop();
-    EXPECT_EQ(RayLog::active(), nullptr);
-    EXPECT_TRUE(accel->occluded({0.2f, 0.3f, 5}, {0, 0, -1}, 0, 100));  // not recorded
   }
   const std::vector<LoggedRay> rays = log.take();
   ASSERT_EQ(rays.size(), 1u);
@@ -81,9 +87,54 @@ TEST(RayLog, StopsRecordingButKeepsTheBvhsItSawAliveForTheReplay) {
   EXPECT_LT(r.tfar, 0.f);  // still blocked by the quad at z = -2
 }
 
+// Scene::observeRays reaches every BVH a gradient step traces: the current one, a rigidly moving
+// mesh's rest pose (support tests in an older pose) and the deformed poses of a vertex job, those
+// built before the log was attached and those built after. Each step moves the parameters, so
+// reused reservoirs come from older poses; every logged ray that is not the current BVH's went
+// through one of those.
+TEST(RayLog, SceneObserversSeeTheRaysOfEveryPoseBvh) {
+  for (const char* job : {"pose", "octagon"}) {
+    SCOPED_TRACE(job);
+    Problem p = buildProblem(zooJob(job));
+    GradientOptions o = p.gradient;
+    o.method = GradientMethod::Restir;
+    GradientEngine engine(*p.scene, p.params, std::vector<Image>(p.scene->cameras.size(), Image(p.scene->width, p.scene->height, 3)), o);
+    EngineSession session;
+    std::vector<float> theta = p.initial;
+    auto step = [&](uint64_t k) {
+      for (float& x : theta) x += 2e-3f;  // a small move of every parameter: a new pose each step
+      p.params.write(theta, *p.scene);
+      GradientRequest r;
+      r.step = k;
+      r.views = {0};
+      engine.evaluate(r, session);
+    };
+    step(0);
+    step(1);  // poses of earlier steps now exist
+    RayLog log;
+    p.scene->observeRays(&log);
+    for (uint64_t k = 2; k < 5; ++k) step(k);
+    p.scene->observeRays(nullptr);
+    const std::vector<LoggedRay> rays = log.take();
+    size_t elsewhere = 0;
+    std::set<RTCScene> bvhs;
+    for (const LoggedRay& x : rays) {
+      elsewhere += x.scene != p.scene->accel.handle();
+      bvhs.insert(x.scene);
+    }
+    EXPECT_GT(rays.size(), 10000u);
+    EXPECT_GT(elsewhere, 0u) << "no ray logged through a pose's BVH";
+    EXPECT_EQ(p.scene->rayObserver(), nullptr);
+    // pose: its rest pose's BVH. octagon: a deformed pose per step; steps 2-4 reuse reservoirs of
+    // poses 1 (built before the log was attached), 2 and 3 (built while it was).
+    EXPECT_EQ(bvhs.size(), std::string(job) == "octagon" ? 4u : 2u) << elsewhere << " rays elsewhere";
+  }
+}
+
 TEST(RayLog, CollectsRaysFromEveryThread) {
   auto accel = quadAt(0);
   RayLog log;
+  accel->observe(&log);
   tbb::parallel_for(0, 20000, [&](int i) {
     const float x = float(i % 200) / 200.f - 0.5f;
     accel->occluded({x, 0.1f, 5}, {0, 0, -1}, 0, 100);
@@ -102,6 +153,7 @@ TEST(RayLog, HoldsExactlyTheRaysTheRendererCounts) {
   opt.spp = 2;
   opt.maxDepth = 3;
   RayLog log;
+  scene->observeRays(&log);
   const RenderResult r = renderView(*scene, 0, opt);
   const std::vector<LoggedRay> rays = log.take();
   EXPECT_EQ(rays.size(), r.rays.total());
