@@ -14,6 +14,7 @@ const char* kindName(ParamKind k) {
     case ParamKind::Albedo: return "albedo";
     case ParamKind::Roughness: return "roughness";
     case ParamKind::LightIntensity: return "light_intensity";
+    case ParamKind::EnvironmentTexels: return "environment_texels";
     case ParamKind::LightLogits: return "light_logits";
     case ParamKind::PixelLightLogits: return "pixel_light_logits";
     case ParamKind::Survival: return "rr_survival";
@@ -60,6 +61,7 @@ std::vector<ParameterInfo> optimisableParameters(const Scene& scene) {
     for (size_t s = 0; s < scene.meshLight.size(); ++s)
       if (scene.meshLight[s] == int(l)) mi.push_back(scene.meshNames[s] + ".emitter.radiance.value");
     names.push_back({"lights/" + n + "/intensity", mi});
+    names.push_back({"lights/" + n + "/texels", {n + ".data"}});
   }
   for (const auto& s : scene.meshNames)
     for (const char* p : {"translation", "rotation", "scale", "vertices"})

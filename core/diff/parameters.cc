@@ -54,6 +54,8 @@ std::string invrParameterName(const Scene& scene, const std::string& name) {
   auto parts = split(name, '.');
   for (const auto& p : parts)
     if (p.empty()) return fail("empty component");
+  // An envmap's bitmap: <emitter id>.data.
+  if (parts.size() == 2 && parts[1] == "data" && lightIndex(scene, parts[0]) >= 0) return "lights/" + parts[0] + "/texels";
   if (parts.back() == "value" || parts.back() == "data") parts.pop_back();
   if (parts.size() < 2) return fail("expected <id>.<property>.value (or .data for a bitmap), e.g. red.reflectance.value");
   const std::string prop = parts.back();
@@ -95,7 +97,7 @@ std::string invrParameterName(const Scene& scene, const std::string& name) {
     }
     return fail("no emitter with id '" + owner[0] + "'");
   }
-  return fail("property '" + prop + "' has no invr parameter (reflectance, diffuse_reflectance and alpha of a bsdf; radiance or intensity of an emitter; vertex_positions or positions of a mesh)");
+  return fail("property '" + prop + "' has no invr parameter (reflectance, diffuse_reflectance and alpha of a bsdf; radiance or intensity of an emitter; vertex_positions or positions of a mesh; data of an envmap)");
 }
 
 const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::string& givenName, const ParameterOptions& o) {
@@ -143,9 +145,21 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   } else if (parts[0] == "lights") {
     int l = lightIndex(scene, parts[1]);
     if (l < 0) return fail("no light named '" + parts[1] + "'" + closestOf(parts[1], scene.lights, [](const auto& x) { return x.name; }));
-    if (parts[2] != "intensity") return fail("unknown light property '" + parts[2] + "' (use intensity)");
-    if (scene.lights[size_t(l)].kind == LightKind::Environment) return fail("image environment maps are not optimisable yet");
-    slot.kind = ParamKind::LightIntensity;
+    const Light& light = scene.lights[size_t(l)];
+    const bool image = light.kind == LightKind::Environment;
+    if (parts[2] == "texels") {
+      if (!image) return fail("light '" + parts[1] + "' is not an image environment map: its value is lights/" + parts[1] + "/intensity");
+      if (!(light.scale > 0.f)) return fail("the environment's scale is " + std::to_string(light.scale) + ", so its texels cannot be recovered");
+      slot.kind = ParamKind::EnvironmentTexels;
+      slot.width = light.envImage->width();
+      slot.height = light.envImage->height();
+    } else if (parts[2] == "intensity") {
+      if (image)
+        return fail("an image environment map's radiance is its texels: use lights/" + parts[1] + "/texels (Mitsuba: " + parts[1] + ".data)");
+      slot.kind = ParamKind::LightIntensity;
+    } else {
+      return fail("unknown light property '" + parts[2] + "' (use " + (image ? "texels" : "intensity") + ")");
+    }
     slot.light = l;
     slot.channels = 3;
     slot.lower = kPositiveFloor;
@@ -155,7 +169,10 @@ const ParameterSlot& ParameterRegistry::add(const Scene& scene, const std::strin
   }
   slot.size = uint32_t(slot.channels * (slot.width > 0 ? slot.width * slot.height : 1));
   applyOptions(slot, o);
-  auto& table = slot.kind == ParamKind::Albedo ? albedo_ : slot.kind == ParamKind::Roughness ? roughness_ : intensity_;
+  auto& table = slot.kind == ParamKind::Albedo      ? albedo_
+                : slot.kind == ParamKind::Roughness ? roughness_
+                : slot.kind == ParamKind::EnvironmentTexels ? texels_
+                                                            : intensity_;
   int owner = slot.material >= 0 ? slot.material : slot.light;
   if (size_t(owner) < table.size() && table[size_t(owner)] >= 0)
     for (const auto& other : slots_)
@@ -522,6 +539,16 @@ std::vector<float> ParameterRegistry::read(const Scene& scene) const {
       out[0] = v.x; out[1] = v.y; out[2] = v.z;
       continue;
     }
+    if (s.kind == ParamKind::EnvironmentTexels) {
+      const Light& l = scene.lights[size_t(s.light)];
+      const Image& im = *l.envImage;
+      for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x) {
+          const Rgb v = im.rgb(x, y) * l.scale;
+          for (int c = 0; c < 3; ++c) out[3 * (y * s.width + x) + c] = v[c];
+        }
+      continue;
+    }
     const Material& m = scene.materials[size_t(s.material)];
     const Texture& t = s.kind == ParamKind::Albedo ? m.albedo : m.roughness;
     if (t.isConstant()) {
@@ -576,6 +603,19 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
         continue;
       }
       default: break;
+    }
+    if (s.kind == ParamKind::EnvironmentTexels) {
+      Light& l = scene.lights[size_t(s.light)];
+      if (l.envImage->channels() < 3) l.envImage = std::make_shared<Image>(s.width, s.height, 3);  // a grey map turns colour
+      Image& im = *l.envImage;
+      const float inv = 1.f / l.scale;
+      for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x) im.setRgb(x, y, Rgb(in[3 * (y * s.width + x)], in[3 * (y * s.width + x) + 1], in[3 * (y * s.width + x) + 2]) * inv);
+      // The map is sampled by its texels' luminance: rebuilt here, and detached from the
+      // derivative (an estimator's expectation does not depend on its sampling density).
+      if (refreshSampling) buildEnvironmentDistribution(l);
+      emissionChanged = true;
+      continue;
     }
     if (s.kind == ParamKind::LightIntensity) {
       Light& l = scene.lights[size_t(s.light)];

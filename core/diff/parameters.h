@@ -2,6 +2,10 @@
 //   materials/<name>/albedo     diffuse or rough_plastic albedo: 3 values, or width*height*3 texels
 //   materials/<name>/roughness  GGX alpha of rough_conductor/rough_plastic: 1 value, or width*height
 //   lights/<name>/intensity     area/constant-environment radiance or point/spot intensity: 3 values
+//   lights/<name>/texels        an image environment map's texels: width*height*3 values (radiance,
+//                               the light's scale applied). Mitsuba: <id>.data. Its sampling
+//                               distribution is rebuilt from them after every update and treated
+//                               as detached (as Mitsuba does): the derivative is the integrand's.
 // Shape parameters (Wang et al. 2023's shape half; core/scene/shape_motion.h): the pose relative to
 // the scene as described, about the shape's or group's pivot
 //   shapes/<name>/translation   x, y, z: 3 values, starting at 0
@@ -35,7 +39,7 @@
 
 namespace invr {
 
-enum class ParamKind { Albedo, Roughness, LightIntensity, LightLogits, PixelLightLogits, Survival, ShapeTranslation, ShapeRotation, ShapeScale, ShapeVertices };
+enum class ParamKind { Albedo, Roughness, LightIntensity, EnvironmentTexels, LightLogits, PixelLightLogits, Survival, ShapeTranslation, ShapeRotation, ShapeScale, ShapeVertices };
 
 // Default lower bound of albedos and light intensities. Above zero so that optimisation never
 // changes where a light sample's target is positive: ReSTIR's normalisation (Z) counts the reused
@@ -90,6 +94,9 @@ class ParameterRegistry {
   int albedoOffset(int material) const { return lookup(albedo_, material); }
   int roughnessOffset(int material) const { return lookup(roughness_, material); }
   int intensityOffset(int light) const { return lookup(intensity_, light); }
+  // An image environment's texels (lights/<l>/texels): texel t's channel c is at offset + 3t + c
+  // (t as environmentTexel numbers it), or -1 if not optimised.
+  int texelsOffset(int light) const { return lookup(texels_, light); }
   // Sampling parameters: offsets, or -1 if not optimised.
   int lightLogitsOffset() const { return lightLogits_; }
   int survivalOffset() const { return survival_; }
@@ -141,7 +148,7 @@ class ParameterRegistry {
   bool readShape(const Scene& scene, const ParameterSlot& s, float* out) const;
   static int lookup(const std::vector<int>& v, int i) { return i >= 0 && size_t(i) < v.size() ? v[size_t(i)] : -1; }
   std::vector<ParameterSlot> slots_;
-  std::vector<int> albedo_, roughness_, intensity_;
+  std::vector<int> albedo_, roughness_, intensity_, texels_;
   std::vector<int> pixelLogits_;  // per view: index into slots_
   int lightLogits_ = -1, survival_ = -1;
   const ParameterSlot& addVertices(const Scene& scene, const std::string& givenName, uint32_t mesh, const ParameterOptions& o);

@@ -30,7 +30,7 @@ class PathAdjointVisitor {
 
   void emission(Rgb weight, Rgb Le, const LightSampleRef& light, float perUnit) {
     L_ += weight * Le;
-    if (perUnit > 0.f) lightGradient(light.light, weight * perUnit);
+    if (perUnit > 0.f) lightGradient(light, weight * perUnit);
     // Emission a BSDF sample from a moving camera hit reached (the MIS half of PT).
     if (shape_.active()) {
       const SurfaceHit& h = shape_.hit();
@@ -47,7 +47,7 @@ class PathAdjointVisitor {
     if (p.throughBsdf && hasBsdfParameters(params_, v.material))
       addBsdfGradient(params_, scene_, v.material, v.hit->uv, v.bsdf->evalDerivatives(v.wo, p.wiLocal),
                       adjoint_ * beta * p.weight * p.emission, grad_);
-    if (p.emissionPerUnit > 0.f) lightGradient(p.light.light, beta * p.weight * p.bsdfValue * p.emissionPerUnit);
+    if (p.emissionPerUnit > 0.f) lightGradient(p.light, beta * p.weight * p.bsdfValue * p.emissionPerUnit);
   }
   void bounce(const WalkVertex& v, Vec3 wi) {
     if (shapes_ && v.depth == 0 && params_.moves(v.hit->mesh)) beginShape(v);
@@ -81,9 +81,14 @@ class PathAdjointVisitor {
   void beginShape(const WalkVertex& v) {
     if (!shape_.active()) shape_.reset(*v.hit, cameraDir_);
   }
-  void lightGradient(uint32_t light, Rgb perUnitContribution) {
-    int off = params_.intensityOffset(int(light));
-    if (off < 0) return;
+  // d(contribution)/d(the light's value): its intensity, or the environment texel `ref` looks up.
+  void lightGradient(const LightSampleRef& ref, Rgb perUnitContribution) {
+    int off = params_.intensityOffset(int(ref.light));
+    if (off < 0) {
+      off = params_.texelsOffset(int(ref.light));
+      if (off < 0) return;
+      off += 3 * environmentTexel(scene_.lights[ref.light], ref.direction());
+    }
     Rgb g = adjoint_ * perUnitContribution;
     for (int c = 0; c < 3; ++c) grad_.add(uint32_t(off + c), g[c]);
   }

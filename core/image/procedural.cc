@@ -57,6 +57,18 @@ Image makeProceduralImage(const ProceduralSpec& s) {
         Rgb sky = v < 0.5f ? s.b * (0.5f + 0.5f * (0.5f - v) * 2.f) : s.b * 0.2f;
         im.setRgb(x, y, sky + s.a * lobe);
       }
+  } else if (s.pattern == "sun_sky") {
+    // A sky from color_b at the zenith to twice as bright at the horizon, a darker brown ground, and
+    // a small sun of colour color_a, 45 degrees high at u = 0.3 (a Gaussian disc of 3.6 degrees).
+    const Rgb ground = Rgb(0.9f, 0.75f, 0.55f) * (0.4f * luminance(s.b));
+    for (int y = 0; y < s.height; ++y)
+      for (int x = 0; x < s.width; ++x) {
+        const float u = (float(x) + 0.5f) / float(s.width), v = (float(y) + 0.5f) / float(s.height);
+        // Round on the sphere: a step in u spans 2 pi sin(theta), one in v spans pi.
+        const float du = 1.414f * (u - 0.3f), dv = v - 0.25f;
+        const float sun = std::exp(-(du * du + dv * dv) / (2.f * 0.02f * 0.02f));
+        im.setRgb(x, y, (v < 0.5f ? s.b * (1.f + 2.f * v) : ground) + s.a * sun);
+      }
   } else if (s.pattern == "bumps") {
     // Smooth hills (a relief's heights): a sum of Gaussians of random place, width and height,
     // scaled so that the lowest texel is b and the highest a.
@@ -86,7 +98,7 @@ Image makeProceduralImage(const ProceduralSpec& s) {
         im.setRgb(x, y, s.b * (1.f - f) + s.a * f);
       }
   } else {
-    throw InputError("procedural image: unknown pattern '" + s.pattern + "' (use checker, painting, backlit_sky, gradient or bumps)");
+    throw InputError("procedural image: unknown pattern '" + s.pattern + "' (use checker, painting, backlit_sky, sun_sky, gradient or bumps)");
   }
   return im;
 }

@@ -8,7 +8,7 @@
 namespace invr {
 
 struct ProceduralSpec {
-  std::string pattern;  // checker | painting | backlit_sky | gradient | bumps
+  std::string pattern;  // checker | painting | backlit_sky | sun_sky | gradient | bumps
   int width = 64, height = 64;
   Rgb a{0.8f}, b{0.2f};
   uint64_t seed = 0;

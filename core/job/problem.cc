@@ -134,7 +134,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   if (o.method() == v1::METHOD_RESTIR || o.method() == v1::METHOD_UNSPECIFIED)
     for (int i = 0; i < o.parameters_size(); ++i) {
       const ParameterSlot& s = p.params.slots()[size_t(i)];
-      if ((s.kind == ParamKind::Albedo || s.kind == ParamKind::LightIntensity) && !(s.lower > 0.f))
+      if ((s.kind == ParamKind::Albedo || s.kind == ParamKind::LightIntensity || s.kind == ParamKind::EnvironmentTexels) && !(s.lower > 0.f))
         fail("parameters[" + std::to_string(i) + "].lower",
              "must be above 0 with method METHOD_RESTIR (default " + std::to_string(kPositiveFloor) +
              "): a value at 0 changes which light samples reused reservoirs could have produced, and ReSTIR's "

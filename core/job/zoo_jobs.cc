@@ -62,6 +62,13 @@ v1::JobSpec zooJob(const std::string& name) {
     param(o, "materials/object/albedo", 0.5, 0.02);
     o->set_views_per_step(4);
     o->set_steps(200);
+  } else if (name == "skylight") {
+    // An environment map's texels (lights/sky/texels) from a uniform grey start: the views see the
+    // sky directly and reflected in the probe, the sun through the objects' shading.
+    param(o, "lights/sky/texels", 0.5, 0.05);
+    o->set_views_per_step(4);
+    o->set_steps(300);
+    o->set_learning_rate_half_life(150);
   } else if (name == "tree") {
     // Shape (Wang et al. 2023, Fig. 10): the tree's rotation, from 15 degrees off about the
     // vertical, read from its shadow alone (the view does not see the tree).

@@ -27,13 +27,19 @@ Vec3 mapDirection(const Light& l, Vec2 uv) {
   return {l.envCosY * d.x + l.envSinY * d.z, d.y, -l.envSinY * d.x + l.envCosY * d.z};
 }
 
-// Piecewise-constant lookup at lat-long coordinates, the same cells the sampler uses, so eval and
-// pdf stay consistent.
-Rgb mapRadiance(const Light& light, Vec2 uv) {
-  const Image& im = *light.envImage;
+// The texel at lat-long coordinates uv: piecewise-constant lookup, the same cells the sampler
+// uses, so eval and pdf stay consistent (and a direction's radiance is one texel's, whose
+// derivative is the light's scale).
+int mapTexel(const Image& im, Vec2 uv) {
   int x = std::min(int(uv.x * float(im.width())), im.width() - 1);
   int y = std::min(int(uv.y * float(im.height())), im.height() - 1);
-  return im.rgb(x, y) * light.scale;
+  return y * im.width() + x;
+}
+
+Rgb mapRadiance(const Light& light, Vec2 uv) {
+  const Image& im = *light.envImage;
+  const int t = mapTexel(im, uv);
+  return im.rgb(t % im.width(), t / im.width()) * light.scale;
 }
 
 float mapPdf(const Light& light, Vec2 uv) {
@@ -51,7 +57,8 @@ LightSample mapSample(const Light& light, Vec3 w, Vec2 uv, float pdf) {
   s.pdf = pdf;
   s.pdfNative = pdf;
   s.radiance = mapRadiance(light, uv);
-  return s;  // image maps are not parameters (yet): emissionPerUnit stays 0
+  s.emissionPerUnit = light.scale;  // per unit of the texel looked up (lights/<env>/texels)
+  return s;
 }
 
 }  // namespace
@@ -60,6 +67,8 @@ Rgb environmentRadiance(const Light& light, Vec3 w) {
   if (light.kind == LightKind::ConstantEnvironment) return light.radiance * light.scale;
   return mapRadiance(light, mapUv(light, w));
 }
+
+int environmentTexel(const Light& light, Vec3 w) { return mapTexel(*light.envImage, mapUv(light, w)); }
 
 float environmentPdf(const Light& light, Vec3 w) {
   if (light.kind == LightKind::ConstantEnvironment) return kUniformSpherePdf;

@@ -90,6 +90,9 @@ float areaLightPdf(const Light& light, Vec3 p, Vec3 y, Vec3 n);
 // Environments: radiance arriving from direction w, and the sampling pdf of w.
 Rgb environmentRadiance(const Light& light, Vec3 w);
 float environmentPdf(const Light& light, Vec3 w);
+// An image environment's texel (y * width + x) that environmentRadiance(light, w) reads: the one
+// the radiance from w is the derivative of (times the light's scale).
+int environmentTexel(const Light& light, Vec3 w);
 void buildEnvironmentDistribution(Light& light);
 Vec2 directionToLatLong(Vec3 w);
 Vec3 latLongToDirection(Vec2 uv);

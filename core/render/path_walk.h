@@ -93,7 +93,7 @@ void walkPath(const Scene& scene, Vec3 o, Vec3 d, Sampler& sampler, const WalkSe
         LightSampleRef ref;
         ref.light = li;
         ref.setDirection(d);
-        emit(beta * w, Le, ref, l.kind == LightKind::ConstantEnvironment ? l.scale : 0.f, EmissionMis{w, !specular});
+        emit(beta * w, Le, ref, l.scale, EmissionMis{w, !specular});
       }
       return;
     }

@@ -239,6 +239,46 @@ v1::Scene backlit() {
   return m.s;
 }
 
+// An environment map to recover (lights/sky/texels): a small sun over a sky, lighting a glossy
+// probe sphere (which reflects nearly every direction into the views), a diffuse sphere and a
+// diffuse box, seen from eight views that also see the sky behind them. No floor: the ground half
+// of the map lights the objects from below and is seen in the probe.
+v1::Scene skylight() {
+  SceneMaker m;
+  m.s.set_name("skylight");
+  m.diffuse("clay", 0.7, 0.7, 0.7);
+  m.diffuse("terracotta", 0.75, 0.4, 0.25);
+  auto* probe = m.s.add_materials();
+  probe->set_name("probe");
+  probe->mutable_rough_conductor()->mutable_roughness()->set_value(0.05);
+  auto* ball = m.shape("probe", "probe");
+  ball->mutable_sphere();
+  SceneMaker::place(ball, {0.6, 0.6, 0.6}, {0, 0, 0}, {-0.55, 0, 0});
+  auto* clay = m.shape("clay", "clay");
+  clay->mutable_sphere();
+  SceneMaker::place(clay, {0.4, 0.4, 0.4}, {0, 0, 0}, {0.5, 0, 0.1});
+  auto* box = m.shape("box", "terracotta");
+  box->mutable_box();
+  SceneMaker::place(box, {0.2, 0.2, 0.2}, {20, 35, 0}, {0.05, -0.3, -0.6});
+  auto* env = m.s.add_lights();
+  env->set_name("sky");
+  auto* p = env->mutable_environment()->mutable_radiance()->mutable_procedural();
+  p->set_pattern("sun_sky");
+  p->set_width(32);
+  p->set_height(16);
+  SceneMaker::set(p->mutable_color_a(), 12, 11, 9);
+  SceneMaker::set(p->mutable_color_b(), 0.3, 0.45, 0.75);
+  for (int i = 0; i < 8; ++i) {
+    const double a = 2.0 * M_PI * (i + 0.5) / 8.0;
+    // Every other view looks up at the objects from below, the rest down from above: between them
+    // they see the sky from the horizon to about 55 degrees up and the ground as far down.
+    const bool up = i % 2 == 0;
+    m.view("ring" + std::to_string(i), {-3.2 * std::sin(a), up ? -1.0 : 1.4, -3.2 * std::cos(a)}, {0, up ? 0.5 : -0.4, 0}, 55);
+  }
+  m.film(112, 112);
+  return m.s;
+}
+
 v1::Scene tree() {
   SceneMaker m;
   m.s.set_name("tree");
@@ -612,6 +652,7 @@ const std::vector<ZooDef>& zoo() {
       {{"ajar", "painting in a room lit through a nearly closed door plus a dim fill"}, ajar},
       {{"mirror", "three diffuse objects in front of a glossy mirror"}, mirror},
       {{"backlit", "textured sphere under an environment lit from behind, 16 views"}, backlit},
+      {{"skylight", "a sky with a small sun (32x16 environment map) seen in a glossy probe, a diffuse sphere and a box, 8 views; its texels"}, skylight},
       {{"tree", "tree-like object seen only through its shadow, a small light and an occluded large light; its rotation (shape parameters)"}, tree},
       {{"knot", "torus knot under a bright spot and dim fills; its translation (shape parameters)"}, knot},
       {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},

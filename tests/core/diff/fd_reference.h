@@ -5,10 +5,13 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdio>
+#include <functional>
 #include <map>
 #include <memory>
 #include <vector>
 
+#include "core/diff/gradient_engine.h"
 #include "core/diff/parameters.h"
 #include "core/render/renderer.h"
 #include "shared_reference.h"
@@ -80,5 +83,53 @@ struct FdReference {
   std::string id;  // the scene, parameters and transport: part of every reference's key
   std::map<size_t, MeanSE> cache;
 };
+
+// The engine's gradient (options o, view 0) against the finite differences of components
+// `checked`: the mean over independent sessions (ReSTIR sessions burn in first, so reservoirs are
+// reused) within kSigmas combined standard errors, and a 10 % error visible (power). Sessions run
+// until every checked component could see an error of 8 %: 64, then half as many again each
+// round, at most 1024; the rule looks at the spread only. `what(k)` names component k.
+inline void expectGradientMatchesFiniteDifferences(FdReference& f, const GradientOptions& o, const std::vector<size_t>& checked,
+                                                   const std::string& label, const std::function<std::string(size_t)>& what) {
+  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+  f.reg.write(f.theta, *f.scene);
+  const int burnIn = o.method == GradientMethod::Restir ? 3 : 0;
+  std::vector<MeanSE> grad(f.reg.size());
+  auto combinedSe = [&](size_t k) {
+    const MeanSE& fd = f.finiteDifference(k);
+    return std::sqrt(grad[k].se() * grad[k].se() + fd.se() * fd.se());
+  };
+  int sessions = 0;
+  for (int target = 64;; target = std::min(1024, target * 3 / 2)) {
+    for (; sessions < target; ++sessions) {
+      EngineSession session;
+      GradientRequest r;
+      r.views = {0};
+      r.seed = 1000 + uint64_t(sessions);
+      for (int b = 0; b < burnIn; ++b) {
+        GradientRequest rb = r;
+        rb.renderOnly = true;
+        rb.step = uint64_t(b);
+        engine.evaluate(rb, session);
+      }
+      r.step = uint64_t(burnIn);
+      auto g = engine.evaluate(r, session).gradient;
+      for (size_t k = 0; k < g.size(); ++k) grad[k].add(g[k]);
+    }
+    bool enough = true;
+    for (size_t k : checked) enough = enough && kSigmas * combinedSe(k) <= 0.08 * std::abs(f.finiteDifference(k).mean);
+    if (enough || sessions >= 1024) break;
+  }
+  std::printf("%s: %d sessions\n", label.c_str(), sessions);
+  for (size_t k : checked) {
+    const MeanSE& fd = f.finiteDifference(k);
+    const double mean = grad[k].mean * mutation();
+    const double se = combinedSe(k);
+    std::printf("%-6s component %4zu (%s): gradient %+.4e (se %.1e), finite difference %+.4e (se %.1e)\n", label.c_str(), k,
+                what(k).c_str(), mean, grad[k].se(), fd.mean, fd.se());
+    EXPECT_NEAR(mean, fd.mean, kSigmas * se) << label << " component " << k << " (" << what(k) << ")";
+    expectPower(label + " component " + std::to_string(k), se, fd.mean);
+  }
+}
 
 }  // namespace invr::test

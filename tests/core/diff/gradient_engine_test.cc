@@ -55,51 +55,10 @@ void checkMethod(GradientMethod method, bool forwardOnly = false, bool pixelNeig
   o.pixelNeighbours = pixelNeighbours;
   o.sppPrimal = 4;
   o.sppGradient = 4;
-  GradientEngine engine(*f.scene, f.reg, {f.target}, o);
-  f.reg.write(f.theta, *f.scene);
-  const int burnIn = method == GradientMethod::Restir ? 3 : 0;
   // One albedo texel of each checker colour, the roughness, one channel of each light.
-  const std::vector<size_t> checked{0, 4, 48, 49, 50, 53};
-  std::vector<test::MeanSE> grad(f.reg.size());
-  auto combinedSe = [&](size_t k) {
-    const test::MeanSE& fd = f.finiteDifference(k);
-    return std::sqrt(grad[k].se() * grad[k].se() + fd.se() * fd.se());
-  };
-  // Sessions until every checked component could see an error of 8 % (below the 10 % claimed):
-  // 64, then half as many again each round, at most 1024. The rule looks at the spread only.
-  int sessions = 0;
-  for (int target = 64;; target = std::min(1024, target * 3 / 2)) {
-    for (; sessions < target; ++sessions) {
-      EngineSession session;
-      GradientRequest r;
-      r.views = {0};
-      r.seed = 1000 + uint64_t(sessions);
-      for (int b = 0; b < burnIn; ++b) {
-        GradientRequest rb = r;
-        rb.renderOnly = true;
-        rb.step = uint64_t(b);
-        engine.evaluate(rb, session);
-      }
-      r.step = uint64_t(burnIn);
-      auto g = engine.evaluate(r, session).gradient;
-      for (size_t k = 0; k < g.size(); ++k) grad[k].add(g[k]);
-    }
-    bool enough = true;
-    for (size_t k : checked) enough = enough && test::kSigmas * combinedSe(k) <= 0.08 * std::abs(f.finiteDifference(k).mean);
-    if (enough || sessions >= 1024) break;
-  }
-  std::printf("%s: %d sessions\n", gradientMethodName(method), sessions);
-  for (size_t k : checked) {
-    const test::MeanSE& fd = f.finiteDifference(k);
-    const double mean = grad[k].mean * test::mutation();
-    const double se = combinedSe(k);
-    std::printf("%-6s component %2zu: gradient %+.4e (se %.1e), finite difference %+.4e (se %.1e)\n",
-                gradientMethodName(method), k, mean, grad[k].se(), fd.mean, fd.se());
-    EXPECT_NEAR(mean, fd.mean, test::kSigmas * se)
-        << gradientMethodName(method) << " component " << k << " (" << (k < 48 ? "albedo" : k == 48 ? "roughness" : "intensity")
-        << ")";
-    test::expectPower(std::string(gradientMethodName(method)) + " component " + std::to_string(k), se, fd.mean);
-  }
+  test::expectGradientMatchesFiniteDifferences(f, o, {0, 4, 48, 49, 50, 53}, gradientMethodName(method), [](size_t k) {
+    return std::string(k < 48 ? "albedo" : k == 48 ? "roughness" : "intensity");
+  });
 }
 
 TEST(GradientEngine, PtMatchesFiniteDifferences) { checkMethod(GradientMethod::Pt); }

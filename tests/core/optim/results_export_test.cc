@@ -1,7 +1,8 @@
 // invr export: a results folder written as a Mitsuba scene, imported back (mitsuba_import.h) and
 // rendered, gives the image of the job's scene at the exported values; the job file beside it
 // runs over that scene. Every zoo scene with something to lose: textures and spot lights (oxalis),
-// a mirror and glossy materials (mirror), an environment map (backlit), a rigid motion (pose),
+// a mirror and glossy materials (mirror), an environment map (backlit) and its recovered texels
+// (skylight), a rigid motion (pose),
 // vertex parameters from another mesh (octagon), roughness textures (rings).
 #include "core/optim/results_export.h"
 
@@ -139,6 +140,8 @@ TEST(ResultsExport, CornellRoundTrips) { checkRoundTrip("cornell", 1e-4); }
 TEST(ResultsExport, TexturesAndSpotLightsRoundTrip) { checkRoundTrip("oxalis", 1e-4); }
 TEST(ResultsExport, GlossyAndMirrorRoundTrip) { checkRoundTrip("mirror", 1e-4); }
 TEST(ResultsExport, EnvironmentMapRoundTrips) { checkRoundTrip("backlit", 1e-4); }
+// The recovered texels (lights/sky/texels) become the exported envmap's EXR.
+TEST(ResultsExport, RecoveredEnvironmentTexelsRoundTrip) { checkRoundTrip("skylight", 1e-4); }
 TEST(ResultsExport, RigidMotionIsBakedIn) { checkRoundTrip("pose", 1e-4); }
 TEST(ResultsExport, OptimisedMeshRoundTrips) { checkRoundTrip("octagon", 1e-4); }
 TEST(ResultsExport, RoughnessRoundTrips) { checkRoundTrip("rings", 1e-4); }
