@@ -19,6 +19,7 @@
 #include "core/error.h"
 #include "core/math/statistics.h"
 #include "core/stopwatch.h"
+#include "core/diff/parameter_kind.h"
 
 namespace invr::cli {
 
@@ -442,7 +443,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   // degrees, the RMSE over those components.
   std::vector<uint32_t> rotation;
   for (const ParameterSlot& sl : s.problem.params.slots())
-    if (sl.kind == ParamKind::ShapeRotation)
+    if (std::string(sl.kind->name()) == "rotation")
       for (uint32_t i = 0; i < sl.size; ++i) rotation.push_back(sl.offset + i);
   auto degreesOff = [&](const std::vector<float>& theta) {
     double sum = 0;

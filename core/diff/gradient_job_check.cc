@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "core/geometry/edge_topology.h"
 #include "core/geometry/embree_scene.h"
+#include "core/diff/parameter_kind.h"
 
 namespace invr {
 
@@ -117,16 +118,14 @@ void validateGradientJob(const Scene& scene, const ParameterRegistry& params, co
   // light settings change t too (throughput roulette, rejected BSDF samples, light selection).
   if (o.variance.enabled && o.variance.cost == VarianceCost::Depth)
     for (const ParameterSlot& s : params.slots())
-      if (s.kind != ParamKind::Survival)
+      if (std::string(s.kind->name()) != "rr_survival")
         fail("variance.cost_model", "\"depth\" optimises sampling/rr_survival only: the render cost t also depends on '" + s.name +
                                         "' (through roulette and sampling), and V dt/dtheta is not estimated for it; use cost_model none "
                                         "or optimise sampling/rr_survival alone");
-  // The variance visitor scores each light's value as one number per channel; an environment's
-  // texels would each need their own.
   if (o.variance.enabled)
     for (const ParameterSlot& s : params.slots())
-      if (s.kind == ParamKind::EnvironmentTexels)
-        fail("parameters", "'" + s.name + "': variance-aware losses have no derivatives for environment texels yet");
+      if (!s.kind->varianceDerivatives())
+        fail("parameters", "'" + s.name + "': variance-aware losses have no derivatives for " + s.kind->name() + " parameters yet");
   if (!params.hasShapeParameters()) return;
   const std::string what = "shape parameters: ";
   if (o.maxDepth != 1) fail("parameters", what + "the interior shape derivative covers direct illumination only; set max_depth 1");

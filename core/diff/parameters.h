@@ -1,4 +1,7 @@
-// Named optimisation parameters mapped into one flat vector theta.
+// Named optimisation parameters mapped into one flat vector theta. Each kind of parameter is one
+// file that registers itself (core/diff/parameter_kind.h lists them); the registry dispatches to
+// the kinds when a parameter is added, read or written, and keeps the dense tables the estimators
+// read at render time (ParameterTables). The names:
 //   materials/<name>/albedo     diffuse or rough_plastic albedo: 3 values, or width*height*3 texels
 //   materials/<name>/roughness  GGX alpha of rough_conductor/rough_plastic: 1 value, or width*height
 //   lights/<name>/intensity     area/constant-environment radiance or point/spot intensity: 3 values
@@ -39,7 +42,7 @@
 
 namespace invr {
 
-enum class ParamKind { Albedo, Roughness, LightIntensity, EnvironmentTexels, LightLogits, PixelLightLogits, Survival, ShapeTranslation, ShapeRotation, ShapeScale, ShapeVertices };
+class ParameterKind;
 
 // Default lower bound of albedos and light intensities. Above zero so that optimisation never
 // changes where a light sample's target is positive: ReSTIR's normalisation (Z) counts the reused
@@ -49,7 +52,7 @@ inline constexpr float kPositiveFloor = 1e-4f;
 
 struct ParameterSlot {
   std::string name;
-  ParamKind kind = ParamKind::Albedo;
+  const ParameterKind* kind = nullptr;  // what it is (parameter_kind.h)
   uint32_t offset = 0, size = 0;
   int channels = 3;  // values per texel (3 colour, 1 scalar)
   int material = -1, light = -1;
@@ -69,8 +72,52 @@ struct ParameterOptions {
   int mapWidth = 0, mapHeight = 0;  // PixelLightLogits: the map's resolution (0: the film's)
 };
 
+// What the estimators read at render time, dense and indexed by the scene's objects. The kinds
+// fill it when a parameter is added (ParameterKind::attach).
+struct ParameterTables {
+  std::vector<int> albedo, roughness, intensity, texels;  // per material or light: offset in theta, or -1
+  std::vector<int> pixelLogits;                            // per view: index into the slots, or -1
+  int lightLogits = -1, survival = -1;                     // offsets, or -1
+  // Shape parameters: per rigidly moving mesh the theta index of each motion component that moves
+  // it with its velocity field (ShapeMotion: 0-6 own, 7-13 group's).
+  struct ShapeField {
+    uint32_t index;
+    int field;
+  };
+  std::vector<std::vector<ShapeField>> meshFields;  // per mesh
+  std::vector<uint32_t> movingMeshes, rigidMeshes;  // ascending
+  std::vector<uint8_t> moving;                      // per mesh
+  // Vertex parameters (param_vertices.cc): per mesh, index into vertexFields or -1.
+  struct VertexField {
+    uint32_t offset = 0;
+    std::vector<uint32_t> weld;            // mesh vertex -> parameter vertex
+    std::vector<uint32_t> representative;  // parameter vertex -> its first mesh vertex
+    std::vector<std::pair<uint32_t, uint32_t>> edges;  // between parameter vertices
+    // Smooth meshes: where dL/d(vertex normal) of mesh vertex v starts, size + normalOffset + 3v;
+    // -1 for flat meshes.
+    int64_t normalOffset = -1;
+    uint32_t mesh = 0;
+  };
+  std::vector<int> vertexField;
+  std::vector<VertexField> vertexFields;
+  size_t normalAdjoints = 0;
+  int nextSlot = 0;  // the index the slot being attached will have
+
+  static int lookup(const std::vector<int>& v, int i) { return i >= 0 && size_t(i) < v.size() ? v[size_t(i)] : -1; }
+  // Sets v[i] = value, growing v with -1.
+  static void put(std::vector<int>& v, size_t i, int value) {
+    if (v.size() <= i) v.resize(i + 1, -1);
+    v[i] = value;
+  }
+  bool moves(uint32_t mesh) const { return mesh < moving.size() && moving[mesh]; }
+  bool deforms(uint32_t mesh) const { return mesh < vertexField.size() && vertexField[mesh] >= 0; }
+  const VertexField& vertices(uint32_t mesh) const { return vertexFields[size_t(vertexField[mesh])]; }
+  void markMoving(const Scene& scene, uint32_t mesh);
+};
+
 class ParameterRegistry {
  public:
+  using ShapeField = ParameterTables::ShapeField;
   // Throws InputError naming the parameter when it does not exist in the scene or is repeated.
   const ParameterSlot& add(const Scene& scene, const std::string& name, const ParameterOptions& options = {});
 
@@ -79,9 +126,10 @@ class ParameterRegistry {
   // vertex normal of the smooth meshes whose vertices are parameters (3 per mesh vertex), which
   // foldNormalAdjoints takes to the vertices once the passes are summed (a per-sample scatter
   // over each hit vertex's ring of triangles would cost more than the rest of the sample).
-  size_t adjointSize() const { return size_ + normalAdjoints_; }
+  size_t adjointSize() const { return size_ + t_.normalAdjoints; }
   const std::vector<ParameterSlot>& slots() const { return slots_; }
   const ParameterSlot* find(const std::string& name) const;
+  const ParameterTables& tables() const { return t_; }
 
   std::vector<float> read(const Scene& scene) const;
   // Writes theta into the scene's materials and lights; refreshes light selection when emission
@@ -91,42 +139,39 @@ class ParameterRegistry {
   void clampToBounds(std::vector<float>& theta) const;
 
   // Offsets of a material's or light's parameters in theta, or -1 if not optimised.
-  int albedoOffset(int material) const { return lookup(albedo_, material); }
-  int roughnessOffset(int material) const { return lookup(roughness_, material); }
-  int intensityOffset(int light) const { return lookup(intensity_, light); }
+  int albedoOffset(int material) const { return ParameterTables::lookup(t_.albedo, material); }
+  int roughnessOffset(int material) const { return ParameterTables::lookup(t_.roughness, material); }
+  int intensityOffset(int light) const { return ParameterTables::lookup(t_.intensity, light); }
   // An image environment's texels (lights/<l>/texels): texel t's channel c is at offset + 3t + c
   // (t as environmentTexel numbers it), or -1 if not optimised.
-  int texelsOffset(int light) const { return lookup(texels_, light); }
+  int texelsOffset(int light) const { return ParameterTables::lookup(t_.texels, light); }
   // Sampling parameters: offsets, or -1 if not optimised.
-  int lightLogitsOffset() const { return lightLogits_; }
-  int survivalOffset() const { return survival_; }
+  int lightLogitsOffset() const { return t_.lightLogits; }
+  int survivalOffset() const { return t_.survival; }
   const ParameterSlot* pixelLogits(int view) const {
-    int i = lookup(pixelLogits_, view);
+    int i = ParameterTables::lookup(t_.pixelLogits, view);
     return i >= 0 ? &slots_[size_t(i)] : nullptr;
   }
-  bool hasSamplingParameters() const { return lightLogits_ >= 0 || survival_ >= 0 || !pixelLogits_.empty(); }
+  bool hasSamplingParameters() const { return t_.lightLogits >= 0 || t_.survival >= 0 || !t_.pixelLogits.empty(); }
 
   // Shape parameters: the meshes they move (sorted), and per rigidly moving mesh the theta index of
-  // each motion component that moves it with its velocity field (ShapeMotion: 0-6 own, 7-13 group's).
-  struct ShapeField {
-    uint32_t index;
-    int field;
-  };
-  bool hasShapeParameters() const { return !movingMeshes_.empty(); }
+  // each motion component that moves it.
+  bool hasShapeParameters() const { return !t_.movingMeshes.empty(); }
   // Every mesh a shape parameter moves (rigidly or vertex by vertex), ascending.
-  const std::vector<uint32_t>& movingMeshes() const { return movingMeshes_; }
-  bool moves(uint32_t mesh) const { return mesh < moving_.size() && moving_[mesh]; }
-  const std::vector<ShapeField>& shapeFields(uint32_t mesh) const { return meshFields_[mesh]; }
+  const std::vector<uint32_t>& movingMeshes() const { return t_.movingMeshes; }
+  bool moves(uint32_t mesh) const { return t_.moves(mesh); }
+  const std::vector<ShapeField>& shapeFields(uint32_t mesh) const { return t_.meshFields[mesh]; }
   // The edges between a vertex parameter's vertices (parameter vertex indices, each edge once).
   const std::vector<std::pair<uint32_t, uint32_t>>& vertexEdges(const ParameterSlot& slot) const {
-    return vertexFields_[size_t(vertexField_[size_t(slot.shape)])].edges;
+    return t_.vertices(uint32_t(slot.shape)).edges;
   }
   // A vertex parameter's mesh at `values` (the slot's part of theta): one vertex per parameter
   // vertex, the shape's triangles on them (triangles welding collapsed are dropped); normals
   // (computeSmoothNormals over the welded vertices) when the shape is smooth-shaded.
+  // (param_vertices.cc)
   TriangleMesh vertexMesh(const Scene& scene, const ParameterSlot& slot, const float* values) const;
   // Whether the mesh's vertices are a parameter (shapes/<s>/vertices).
-  bool deforms(uint32_t mesh) const { return mesh < vertexField_.size() && vertexField_[mesh] >= 0; }
+  bool deforms(uint32_t mesh) const { return t_.deforms(mesh); }
   // The shape-parameter adjoints of the estimators: the derivative of the loss with respect to a
   // point that moves with a moving mesh, taken to the parameters (no-op for a mesh that does not
   // move). A surface point (a hit: its triangle and barycentrics) with its unit shading normal:
@@ -139,40 +184,12 @@ class ParameterRegistry {
   void foldNormalAdjoints(const Scene& scene, std::vector<double>& gradient, bool normals = true) const;
 
  private:
-  const ParameterSlot& addShape(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
-                                const ParameterOptions& o);
-  const ParameterSlot& addSampling(const Scene& scene, const std::string& givenName, const std::vector<std::string>& parts,
-                                   const ParameterOptions& o);
   void applyOptions(ParameterSlot& slot, const ParameterOptions& o) const;
-  bool readSampling(const Scene& scene, const ParameterSlot& s, float* out) const;
-  bool readShape(const Scene& scene, const ParameterSlot& s, float* out) const;
-  static int lookup(const std::vector<int>& v, int i) { return i >= 0 && size_t(i) < v.size() ? v[size_t(i)] : -1; }
-  std::vector<ParameterSlot> slots_;
-  std::vector<int> albedo_, roughness_, intensity_, texels_;
-  std::vector<int> pixelLogits_;  // per view: index into slots_
-  int lightLogits_ = -1, survival_ = -1;
-  const ParameterSlot& addVertices(const Scene& scene, const std::string& givenName, uint32_t mesh, const ParameterOptions& o);
   // Rigid motion: dot(dLdp, dp/dtheta) for a point p of the mesh, and the same for a unit normal.
   void addPointGradient(const Scene& scene, uint32_t mesh, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
   void addNormalGradient(const Scene& scene, uint32_t mesh, Vec3 n, Vec3 dLdn, PathGradient& grad) const;
-  std::vector<std::vector<ShapeField>> meshFields_;  // per mesh
-  std::vector<uint32_t> movingMeshes_, rigidMeshes_;
-  std::vector<uint8_t> moving_;  // per mesh
-  // Vertex parameters: per mesh, index into vertexFields_ or -1.
-  struct VertexField {
-    uint32_t offset = 0;
-    std::vector<uint32_t> weld;            // mesh vertex -> parameter vertex
-    std::vector<uint32_t> representative;  // parameter vertex -> its first mesh vertex
-    std::vector<std::pair<uint32_t, uint32_t>> edges;  // between parameter vertices
-    // Smooth meshes: where dL/d(vertex normal) of mesh vertex v starts, size_ + normalOffset + 3v;
-    // -1 for flat meshes.
-    int64_t normalOffset = -1;
-    uint32_t mesh = 0;
-  };
-  size_t normalAdjoints_ = 0;
-  std::vector<int> vertexField_;
-  std::vector<VertexField> vertexFields_;
-  void markMoving(const Scene& scene, uint32_t mesh);
+  std::vector<ParameterSlot> slots_;
+  ParameterTables t_;
   size_t size_ = 0;
 };
 

@@ -11,6 +11,7 @@
 #include "core/image/image.h"
 #include "core/math/rng.h"
 #include "core/render/renderer.h"
+#include "core/diff/parameter_kind.h"
 
 namespace invr {
 
@@ -121,7 +122,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       fail(field + ".name", e.what());
     }
     const ParameterSlot& added = p.params.slots().back();
-    if (added.kind == ParamKind::ShapeVertices) {
+    if (added.kind->isMesh()) {
       Problem::TruthMesh t = replaced ? *replaced : Problem::TruthMesh{0, uint32_t(added.shape), p.scene->meshes[size_t(added.shape)], 0.0, false, nullptr};
       t.slot = p.params.slots().size() - 1;
       t.diagonal = boundingBoxDiagonal(t.geometry);
@@ -134,7 +135,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
   if (o.method() == v1::METHOD_RESTIR || o.method() == v1::METHOD_UNSPECIFIED)
     for (int i = 0; i < o.parameters_size(); ++i) {
       const ParameterSlot& s = p.params.slots()[size_t(i)];
-      if ((s.kind == ParamKind::Albedo || s.kind == ParamKind::LightIntensity || s.kind == ParamKind::EnvironmentTexels) && !(s.lower > 0.f))
+      if (s.kind->zeroBiasesReuse() && !(s.lower > 0.f))
         fail("parameters[" + std::to_string(i) + "].lower",
              "must be above 0 with method METHOD_RESTIR (default " + std::to_string(kPositiveFloor) +
              "): a value at 0 changes which light samples reused reservoirs could have produced, and ReSTIR's "
@@ -151,7 +152,7 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
       return float(v);
     };
     if (ps.has_initial() && ps.initial_values_size() > 0) fail(field, "set either initial or initial_values, not both");
-    if (s.kind == ParamKind::ShapeVertices && (ps.has_initial() || (ps.initial_values_size() > 0 && uint32_t(ps.initial_values_size()) != s.size)))
+    if (s.kind->isMesh() && (ps.has_initial() || (ps.initial_values_size() > 0 && uint32_t(ps.initial_values_size()) != s.size)))
       fail(field + (ps.has_initial() ? ".initial" : ".initial_values"),
            "would put every vertex of '" + ps.name() + "' at one point; start from another mesh with initial_mesh, or give every coordinate (" +
                std::to_string(s.size) + " values)");
@@ -159,9 +160,9 @@ Problem buildProblem(const v1::JobSpec& job, const AssetResolver& assets, SceneU
     if (const int nt = ps.truth_values_size(); nt > 0) {
       const std::string tf = field + ".truth_values";
       if (o.targets_size() > 0) fail(tf, "the job's targets are uploaded images, whose truth is unknown: remove truth_values or the targets");
-      if (s.kind == ParamKind::LightLogits || s.kind == ParamKind::PixelLightLogits || s.kind == ParamKind::Survival)
+      if (s.kind->changesNoiseOnly())
         fail(tf, "'" + s.name + "' changes the noise, never the image: it has no truth");
-      if (s.kind == ParamKind::ShapeVertices) fail(tf, "the truth of '" + s.name + "' is the shape's own mesh (start elsewhere with initial_mesh)");
+      if (s.kind->isMesh()) fail(tf, "the truth of '" + s.name + "' is the shape's own mesh (start elsewhere with initial_mesh)");
       if (nt != 1 && nt != s.channels && uint32_t(nt) != s.size)
         fail(tf, "has " + std::to_string(nt) + " values; '" + s.name + "' takes 1, " + std::to_string(s.channels) + " (one per channel)" +
                      (s.size != uint32_t(s.channels) ? " or " + std::to_string(s.size) + " (one per texel and channel)" : ""));
@@ -379,7 +380,7 @@ double parameterError(const Problem& p, const std::vector<float>& theta) {
   size_t n = 0;
   for (size_t k = 0; k < p.params.slots().size(); ++k) {
     const ParameterSlot& s = p.params.slots()[k];
-    if (s.kind == ParamKind::LightLogits || s.kind == ParamKind::PixelLightLogits || s.kind == ParamKind::Survival) continue;
+    if (s.kind->changesNoiseOnly()) continue;
     bool startedElsewhere = false;  // its truth has other vertices: shapeError measures it
     for (const auto& t : p.truthMeshes) startedElsewhere = startedElsewhere || (t.slot == k && t.replaced);
     if (startedElsewhere) continue;

@@ -7,6 +7,7 @@
 #include "core/diff/parameters.h"
 #include "core/job/problem.h"
 #include "core/optim/results_io.h"
+#include "core/diff/parameter_kind.h"
 
 namespace invr {
 
@@ -15,7 +16,6 @@ namespace v1 = invr::v1;
 
 namespace {
 
-bool heldBySampling(ParamKind k) { return k == ParamKind::LightLogits || k == ParamKind::PixelLightLogits || k == ParamKind::Survival; }
 
 // The exported job: the same optimisation over the exported scene.
 // resultsDir empty: the job as given (its scene as described), initial values and targets kept.
@@ -37,8 +37,7 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
   // the run's target images instead, with no truth.
   bool shapes = false;
   for (const ParameterSlot& s : slots)
-    shapes = shapes || s.kind == ParamKind::ShapeTranslation || s.kind == ParamKind::ShapeRotation || s.kind == ParamKind::ShapeScale ||
-             s.kind == ParamKind::ShapeVertices;
+    shapes = shapes || s.kind->relativeToGeometry();
   const bool keepTruth = !asGiven && job.optimization().targets_size() == 0 && !shapes;
   for (int i = 0; i < job.optimization().parameters_size() && size_t(i) < slots.size(); ++i) {
     const ParameterSlot& s = slots[size_t(i)];
@@ -60,7 +59,7 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
     ps.clear_initial_values();
     ps.clear_initial_mesh();
     ps.clear_truth_values();
-    if (heldBySampling(s.kind))  // not part of the scene: the job carries them
+    if (s.kind->changesNoiseOnly())  // not part of the scene: the job carries them
       for (uint32_t k = 0; k < s.size; ++k) ps.add_initial_values(double(theta[s.offset + k]));
     else if (keepTruth)
       for (uint32_t k = 0; k < s.size; ++k) ps.add_truth_values(double(p.truth[s.offset + k]));

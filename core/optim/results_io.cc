@@ -13,6 +13,7 @@
 #include "core/math/decimal.h"
 #include "core/lights/light_selection.h"
 #include "core/scene/scene.h"
+#include "core/diff/parameter_kind.h"
 
 namespace invr {
 
@@ -48,7 +49,7 @@ std::vector<std::pair<std::string, std::vector<double>>> smallParameterValues(co
                                                                                uint32_t maxValues) {
   std::vector<std::pair<std::string, std::vector<double>>> out;
   for (const ParameterSlot& s : params.slots()) {
-    if (s.kind == ParamKind::ShapeVertices || s.width > 0 || s.size > maxValues || s.offset + s.size > theta.size()) continue;
+    if (s.kind->isMesh() || s.width > 0 || s.size > maxValues || s.offset + s.size > theta.size()) continue;
     std::vector<double> v;
     for (uint32_t k = 0; k < s.size; ++k) v.push_back(shortestDecimal(theta[s.offset + k]));
     out.emplace_back(s.name, std::move(v));
@@ -61,7 +62,7 @@ std::vector<std::string> writeParameters(const std::filesystem::path& dir, const
   std::vector<std::string> files{"parameters.json"};
   Json js = Json::object();
   for (const ParameterSlot& s : params.slots()) {
-    if (s.kind == ParamKind::ShapeVertices) {
+    if (s.kind->isMesh()) {
       const std::string file = "mesh_" + scene.meshNames[size_t(s.shape)] + ".ply";
       const TriangleMesh mesh = params.vertexMesh(scene, s, theta.data() + s.offset);
       writePly(dir / file, mesh);

@@ -20,6 +20,7 @@
 #include "core/job/zoo_jobs.h"
 #include "core/optim/results_io.h"
 #include "core/render/renderer.h"
+#include "core/diff/parameter_kind.h"
 
 namespace invr {
 namespace {
@@ -46,7 +47,7 @@ std::vector<float> midway(const Problem& p) {
   for (const ParameterSlot& s : p.params.slots())
     for (uint32_t k = 0; k < s.size; ++k) {
       float& v = theta[s.offset + k];
-      if (s.kind == ParamKind::ShapeVertices) v += 0.01f * std::sin(float(k));
+      if (s.kind->isMesh()) v += 0.01f * std::sin(float(k));
       else if (p.truth.size() == theta.size()) v = 0.5f * (v + p.truth[s.offset + k]);
     }
   return theta;
@@ -113,8 +114,8 @@ void checkRoundTrip(const std::string& zoo, double tolerance) {
   for (const ParameterSlot& s : p.params.slots())
     for (uint32_t k = 0; k < s.size; ++k) {
       const size_t i = s.offset + k;
-      const bool rigid = s.kind == ParamKind::ShapeTranslation || s.kind == ParamKind::ShapeRotation || s.kind == ParamKind::ShapeScale;
-      const float expected = !rigid ? theta[i] : s.kind == ParamKind::ShapeScale ? 1.f : 0.f;
+      const bool rigid = s.kind->relativeToGeometry() && !s.kind->isMesh();
+      const float expected = !rigid ? theta[i] : std::string(s.kind->name()) == "scale" ? 1.f : 0.f;
       ASSERT_NEAR(q.initial[i], expected, 1e-5f * (1.f + std::abs(expected))) << s.name << " value " << k;
     }
   // The run's truth goes with the job (truth_values), so continuing it measures the same parameter
@@ -122,11 +123,9 @@ void checkRoundTrip(const std::string& zoo, double tolerance) {
   // geometry: such a job carries no truth and goes on against the run's target images.
   bool shapes = false;
   for (const ParameterSlot& s : p.params.slots())
-    shapes = shapes || s.kind == ParamKind::ShapeTranslation || s.kind == ParamKind::ShapeRotation || s.kind == ParamKind::ShapeScale ||
-             s.kind == ParamKind::ShapeVertices;
+    shapes = shapes || s.kind->relativeToGeometry();
   for (int i = 0; i < again.optimization().parameters_size(); ++i) {
-    const ParamKind kind = p.params.slots()[size_t(i)].kind;
-    const bool sampling = kind == ParamKind::LightLogits || kind == ParamKind::PixelLightLogits || kind == ParamKind::Survival;
+    const bool sampling = p.params.slots()[size_t(i)].kind->changesNoiseOnly();
     EXPECT_EQ(again.optimization().parameters(i).truth_values_size() > 0, !shapes && !sampling) << again.optimization().parameters(i).name();
   }
   if (!shapes) {
