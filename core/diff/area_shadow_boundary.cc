@@ -71,6 +71,7 @@ const RegisterBoundaryTerm kAreaLightPoints({
                  " light points per pass, jump evaluated directly";
         },
     .memoryBytes = {},
+    .samples = {Discontinuity::AreaLightShadows},
 });
 
 }  // namespace

@@ -73,9 +73,15 @@ RegisterBoundaryTerm::RegisterBoundaryTerm(BoundaryTermKind kind) {
 
 const std::vector<const BoundaryTermKind*>& boundaryTermKinds() { return registry(); }
 
+bool sampledBy(Discontinuity d, const std::vector<const BoundaryTermKind*>& kinds) {
+  for (const BoundaryTermKind* k : kinds)
+    if (std::find(k->samples.begin(), k->samples.end(), d) != k->samples.end()) return true;
+  return false;
+}
+
 std::vector<const BoundaryTermKind*> boundaryTermsFor(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options) {
   std::vector<const BoundaryTermKind*> out;
-  if (!params.hasShapeParameters()) return out;
+  if (!params.hasVisibilityParameters()) return out;
   for (const BoundaryTermKind* k : registry())
     if (k->applies(scene, options)) out.push_back(k);
   return out;

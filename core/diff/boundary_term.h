@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/diff/boundary_state.h"
 #include "core/diff/parameters.h"
 #include "core/geometry/edge_topology.h"
 #include "core/image/image.h"
@@ -74,7 +75,6 @@ struct BoundaryPassStats {
 };
 
 struct GradientOptions;
-struct EngineSession;
 class InteriorEstimator;
 class GradientScratchPool;
 
@@ -84,7 +84,7 @@ struct BoundaryStep {
   const ParameterRegistry& params;
   const std::vector<EdgeTopology>& topology;  // per mesh (occluders need not move to cast a moving shadow)
   const GradientOptions& options;
-  EngineSession& session;         // what terms keep between steps (edge reservoirs)
+  std::unique_ptr<BoundaryTermState>& state;  // this term's slot in the session: what it keeps between steps
   const std::vector<int>& views;  // the step's views (of this shard)
   bool allSessionViews = false;   // the step holds every view the session serves
 };
@@ -127,6 +127,19 @@ struct BoundaryPlanInput {
 // none (their terminators are found per step).
 std::vector<EdgeTopology> buildBoundaryTopology(const Scene& scene, const ParameterRegistry& params);
 
+// The kinds of film discontinuity that move with shape or camera parameters. Each boundary term
+// declares the ones it samples (BoundaryTermKind::samples); a job whose scene has one that no
+// registered term declares is refused, naming it (unsampledDiscontinuities, gradient_job_check.h).
+enum class Discontinuity : uint8_t {
+  MeshEdges,                // silhouettes, creases and smooth meshes' shadow terminators, seen by the camera
+  DeltaLightShadows,        // shadow borders of point and spot lights
+  AreaLightShadows,         // shadow borders of area lights
+  EnvironmentShadows,       // shadow borders of environment lights
+  ContactCurves,            // where a surface touches or cuts another (or itself) in view: not a mesh edge
+  HardSpotCones,            // a spot light's hard cone border on what it lights
+  EnvironmentTexelBorders,  // an image environment map's texel borders, seen by a moving camera
+};
+
 // One kind of boundary term, as it registers itself.
 struct BoundaryTermKind {
   std::string name;  // the key of its statistics (GradientStats.boundary)
@@ -140,6 +153,8 @@ struct BoundaryTermKind {
   std::function<std::string(const BoundaryPlanInput&)> describe;
   // Bytes one worker holds for it beyond the shared edge topology (0 by default).
   std::function<double(const BoundaryPlanInput&)> memoryBytes;
+  // The discontinuities it samples (alternatives for one kind may both declare it).
+  std::vector<Discontinuity> samples;
 };
 
 // Registers a term kind; a file defines one of these at namespace scope. Throws std::logic_error
@@ -150,6 +165,8 @@ struct RegisterBoundaryTerm {
 
 // Every registered kind, in run order.
 const std::vector<const BoundaryTermKind*>& boundaryTermKinds();
+// Whether one of `kinds` declares that it samples d.
+bool sampledBy(Discontinuity d, const std::vector<const BoundaryTermKind*>& kinds);
 // The kinds that apply to a scene under a job's options (none unless shapes are optimised and the
 // options enable them).
 std::vector<const BoundaryTermKind*> boundaryTermsFor(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options);

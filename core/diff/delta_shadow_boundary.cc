@@ -44,6 +44,7 @@ const RegisterBoundaryTerm kDeltaShadows({
                  " samples per view and step on occluder silhouette edges seen from each light, that light's jump evaluated directly";
         },
     .memoryBytes = {},
+    .samples = {Discontinuity::DeltaLightShadows},
 });
 
 }  // namespace

@@ -5,7 +5,6 @@
 
 #include "core/diff/area_shadow_boundary.h"
 #include "core/diff/film_projection.h"
-#include "core/diff/gradient_engine.h"
 #include "core/diff/shadow_border.h"
 #include "core/math/sampling.h"
 
@@ -107,7 +106,7 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
                                                                         mesh.positions[me.v0], mesh.positions[me.v1], boxes[b]));
       border = border && std::isfinite(len) && len > 0.f;
       if (border) ++candidateEdges_;
-      base.push_back(border ? len * (params.moves(m) ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
+      base.push_back(border ? len * (params.moves(m) || params.hasCameraParameters() ? 1.f : kUnlikelyShadowEdgeWeight) : 0.f);
     }
   }
   for (size_t m = std::min(topology.size(), scene.meshes.size()); m < firstEdge_.size(); ++m) firstEdge_[m] = uint32_t(edges_.size());
@@ -226,7 +225,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
       const float g = luminance(areaEmission(l, c.n, toB)) * std::abs(dot(c.n, toB)) / (d2 * std::sqrt(d2));
       ShadowBorderPoint bp;
       float h = 0.f;
-      if (shadowBorderPoint(scene_, params_, cam, ShadowSource::at(c.y, c.n), se, t, bp, counters.rays)) {
+      if (shadowBorderPoint(scene_, params_, view, ShadowSource::at(c.y, c.n), se, t, bp, counters.rays)) {
         const float a = smoothAdj[size_t(std::clamp(int(bp.x.y), 0, H - 1)) * size_t(W) + size_t(std::clamp(int(bp.x.x), 0, W - 1))];
         const Vec3 toY = c.y - bp.hit.p;
         const float r2 = lengthSquared(toY);
@@ -309,7 +308,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
 
     // The sample: F(p^B, y) W / p(p^B), F measured on the film (Eq. 25).
     ShadowBorderPoint bp;
-    const bool onFilm = shadowBorderPoint(scene_, params_, cam, ShadowSource::at(chosen.y, chosen.n), se, t, bp, counters.rays);
+    const bool onFilm = shadowBorderPoint(scene_, params_, view, ShadowSource::at(chosen.y, chosen.n), se, t, bp, counters.rays);
     const Vec3 dir = normalize(r.pB - chosen.y);
     if (onFilm) {
       r.hasP1 = true;
@@ -332,7 +331,7 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
     const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, W - 1), std::clamp(int(bp.x.y), 0, H - 1));
     const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) * double(res.W) /
                      (double(pickEdge_.pmf(k)) * double(samples));
-    if (w != 0.0) addShadowBorderGradient(scene_, params_, se, bp, w, grad);
+    if (w != 0.0) addShadowBorderGradient(scene_, params_, view, se, bp, w, grad);
   });
   return st;
 }
@@ -366,6 +365,11 @@ size_t EdgeReservoirBoundary::preserve(const std::vector<int>& views, std::vecto
   return kept;
 }
 
+const EdgeReservoirSet* keptEdgeReservoirs(const BoundaryStateSlots& session) {
+  auto it = session.find(kEdgeFirstAreaShadowsName);
+  return it == session.end() || !it->second ? nullptr : &static_cast<const EdgeReservoirState&>(*it->second).edges;
+}
+
 namespace {
 
 // The term as the engine runs it: a step's sampler over the session's reservoirs, collecting this
@@ -374,7 +378,9 @@ namespace {
 class EdgeFirstAreaShadows final : public BoundaryTerm {
  public:
   EdgeFirstAreaShadows(const BoundaryStep& s, const EdgeSamplingSettings& settings)
-      : sampler_(s.scene, s.params, s.topology, s.session.edges, settings), store_(s.session.edges), views_(s.views),
+      : sampler_(s.scene, s.params, s.topology, boundaryState<EdgeReservoirState>(s.state).edges, settings),
+        store_(boundaryState<EdgeReservoirState>(s.state).edges),
+        views_(s.views),
         keep_(settings.reuse), preserve_(settings.reuse && s.options.preserveOccluded && !s.allSessionViews) {}
   BoundaryPassStats run(const BoundaryView& v) override {
     return sampler_.run(v.view, v.adjoint, v.samples, v.stream, v.step, v.scratch, v.gradient, created_, v.cancel);
@@ -409,7 +415,7 @@ EdgeSamplingSettings edgeSettings(const GradientOptions& o) {
 }
 
 const RegisterBoundaryTerm kEdgeFirst({
-    .name = "area_shadows_edge_first",
+    .name = kEdgeFirstAreaShadowsName,
     .order = 30,
     .stream = kAreaShadowBoundaryStream,
     .applies =
@@ -443,6 +449,7 @@ const RegisterBoundaryTerm kEdgeFirst({
           return double(in.shardViews) * double(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) *
                  double(sizeof(EdgeReservoir) + 24) * (in.options.preserveOccluded ? 2.0 + 1.0 : 2.0);
         },
+    .samples = {Discontinuity::AreaLightShadows},
 });
 
 }  // namespace

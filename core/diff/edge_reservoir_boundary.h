@@ -84,4 +84,12 @@ class EdgeReservoirBoundary {
   size_t candidateEdges_ = 0;  // edges with p_k > 0 before edge importance (reported per pass)
 };
 
+// What the edge-first term keeps between steps, in its slot of the session (boundary_state.h).
+inline constexpr const char* kEdgeFirstAreaShadowsName = "area_shadows_edge_first";
+struct EdgeReservoirState final : BoundaryTermState {
+  EdgeReservoirSet edges;
+};
+// The edge reservoirs a session's slots hold for the term, or null before it kept any.
+const EdgeReservoirSet* keptEdgeReservoirs(const BoundaryStateSlots& session);
+
 }  // namespace invr

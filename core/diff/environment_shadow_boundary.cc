@@ -63,6 +63,7 @@ const RegisterBoundaryTerm kEnvironmentShadows({
                  " directions per pass drawn by the environment's sampling, jump evaluated directly";
         },
     .memoryBytes = {},
+    .samples = {Discontinuity::EnvironmentShadows},
 });
 
 }  // namespace

@@ -59,7 +59,7 @@ GradientEngine::GradientEngine(const Scene& scene, const ParameterRegistry& para
     INVR_INVARIANT(m.empty() || m.size() == size_t(scene.width) * size_t(scene.height), "a loss mask matches the film");
   boundaryTerms_ = boundaryTermsFor(scene, params, opt_);
   // Occluders need not move to cast a moving shadow (a moving receiver drags it): every mesh.
-  if (params.hasShapeParameters()) topology_ = buildBoundaryTopology(scene, params);
+  if (params.hasVisibilityParameters()) topology_ = buildBoundaryTopology(scene, params);
 }
 
 GradientEngine::~GradientEngine() = default;
@@ -276,9 +276,9 @@ void GradientEngine::boundaryPasses(Step& s) {
   const RayObserver::BoundaryPhase boundaryRays(scene_.rayObserver());  // `invr-lab bench step` counts these rays apart
   v1::GradientStats& st = s.out.stats;
   const int samples = opt_.boundary.samplesFor(scene_.width, scene_.height);
-  const BoundaryStep setup{scene_, params_, topology_, opt_, s.session, req.views, req.allSessionViews};
   std::vector<std::unique_ptr<BoundaryTerm>> terms;
-  for (const BoundaryTermKind* kind : boundaryTerms_) terms.push_back(kind->make(setup));
+  for (const BoundaryTermKind* kind : boundaryTerms_)
+    terms.push_back(kind->make({scene_, params_, topology_, opt_, s.session.boundary[kind->name], req.views, req.allSessionViews}));
   std::vector<double> seconds(terms.size(), 0.0);
   std::vector<BoundaryPassStats> totals(terms.size());
   for (size_t k = 0; k < req.views.size(); ++k) {
@@ -406,7 +406,7 @@ void GradientEngine::storeReservoirs(Step& s) {
     // its position and the draw, not on its sample, so reuse stays unbiased. When the batch holds
     // every pixel of every view and the geometry never moved, each old reservoir is replaced (it
     // was seen by one of these views and is visible still): skip the rays.
-    const bool unmoved = scene_.geometryVersion() == 0;
+    const bool unmoved = scene_.geometryVersion() == 0 && scene_.cameraVersion() == 0;
     const bool everyPixel = s.batches.empty();
     bool allViews = (req.allSessionViews || req.views.size() == scene_.cameras.size()) && unmoved && everyPixel;
     if (opt_.preserveOccluded && !allViews) {

@@ -21,7 +21,7 @@
 
 #include "core/diff/gradient_options.h"
 #include "core/geometry/edge_topology.h"
-#include "core/restir/edge_reservoir.h"
+#include "core/diff/boundary_state.h"
 #include "core/diff/parameters.h"
 #include "core/diff/sample_drops.h"
 #include "invr/v1/stats.pb.h"
@@ -61,7 +61,7 @@ struct GradientResult {
 // Per-job state that survives between steps (the worker's session cache): reservoir chains.
 struct EngineSession {
   ReservoirStore primal, derivative;
-  EdgeReservoirSet edges;  // shape jobs with area lights: the secondary boundary's reservoirs (Alg. 6)
+  BoundaryStateSlots boundary;  // what each boundary term keeps, by its name (edge reservoirs: Alg. 6)
   std::map<int, PixelMap> pixelMaps;  // per view: the pixel-sampling probabilities
 };
 

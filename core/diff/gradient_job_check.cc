@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "core/geometry/edge_topology.h"
 #include "core/geometry/embree_scene.h"
+#include "core/diff/boundary_term.h"
 #include "core/diff/parameter_kind.h"
 
 namespace invr {
@@ -23,18 +24,24 @@ std::set<std::pair<uint32_t, uint32_t>> touchingPairs(const Scene& scene, const 
   std::set<std::pair<uint32_t, uint32_t>> pairs;
   const float tol = 1e-4f * scene.radius;
   std::vector<EdgeTopology> topology(scene.meshes.size());
+  // A moving camera moves every contact curve on its film: every mesh counts as moving.
+  std::vector<uint32_t> movers = params.movingMeshes();
+  if (params.hasCameraParameters()) {
+    movers.resize(scene.meshes.size());
+    for (uint32_t m = 0; m < movers.size(); ++m) movers[m] = m;
+  }
   std::vector<bool> moving(scene.meshes.size(), false);
-  for (uint32_t m : params.movingMeshes()) moving[m] = true;
+  for (uint32_t m : movers) moving[m] = true;
   EmbreeScene all;
   all.build(scene.meshes);
   std::vector<TriangleMesh> movingMeshes;
   std::vector<uint32_t> movingIndex;
-  for (uint32_t m : params.movingMeshes()) {
+  for (uint32_t m : movers) {
     movingMeshes.push_back(scene.meshes[m]);
     movingIndex.push_back(m);
   }
-  EmbreeScene movers;
-  movers.build(movingMeshes);
+  EmbreeScene moverAccel;
+  moverAccel.build(movingMeshes);
   auto seen = [&](Vec3 p) {
     for (const Camera& cam : scene.cameras) {
       float px, py;
@@ -82,7 +89,7 @@ std::set<std::pair<uint32_t, uint32_t>> touchingPairs(const Scene& scene, const 
     topology[m] = EdgeTopology::build(scene.meshes[m]);
     for (const MeshEdge& e : topology[m].edges()) {
       if (moving[m]) crossEdge(m, topology[m], e, all, [](uint32_t k) { return k; });
-      else crossEdge(m, topology[m], e, movers, [&](uint32_t k) { return movingIndex[k]; });
+      else crossEdge(m, topology[m], e, moverAccel, [&](uint32_t k) { return movingIndex[k]; });
     }
   }
   return pairs;
@@ -93,19 +100,46 @@ std::string quoted(const std::string& s) { return "'" + s + "'"; }
 }  // namespace
 
 std::vector<std::string> unsampledDiscontinuities(const Scene& scene, const ParameterRegistry& params) {
+  return unsampledDiscontinuities(scene, params, boundaryTermKinds());
+}
+
+std::vector<std::string> unsampledDiscontinuities(const Scene& scene, const ParameterRegistry& params,
+                                                  const std::vector<const BoundaryTermKind*>& terms) {
   std::vector<std::string> out;
-  if (!params.hasShapeParameters()) return out;
-  for (const auto& [a, b] : touchingPairs(scene, params)) {
-    if (a == b)
-      out.push_back("shape " + quoted(scene.meshNames[a]) + " cuts or touches itself in view: the curve where it does is a visibility discontinuity, not a mesh edge");
-    else
-      out.push_back("shape " + quoted(scene.meshNames[params.moves(a) ? a : b]) + " touches or cuts " +
-                    quoted(scene.meshNames[params.moves(a) ? b : a]) + " in view: their contact curve moves with it and is not a mesh edge");
+  if (!params.hasVisibilityParameters()) return out;
+  const bool camera = params.hasCameraParameters();
+  auto unsampled = [&](Discontinuity d) { return !sampledBy(d, terms); };
+  // What the job's moving geometry or cameras put on the film, each kind asked of the terms.
+  if (unsampled(Discontinuity::MeshEdges))
+    out.push_back(std::string("the edges of ") + (camera ? "every shape in a moving view" : "the moving shapes") +
+                  " (silhouettes and creases) move on the film");
+  for (const Light& l : scene.lights) {
+    const Discontinuity d = l.isDelta() ? Discontinuity::DeltaLightShadows
+                            : l.kind == LightKind::Area ? Discontinuity::AreaLightShadows
+                                                        : Discontinuity::EnvironmentShadows;
+    if (unsampled(d)) out.push_back("light " + quoted(l.name) + " casts shadows whose borders move on the film");
   }
-  for (const Light& l : scene.lights)
-    if (l.kind == LightKind::Spot && l.cosInner <= std::nextafter(l.cosOuter, 1.f))
-      out.push_back("spot light " + quoted(l.name) +
-                    " has a hard cone edge (cone_inner_degrees == cone_outer_degrees): its border moves across the moving surfaces it lights");
+  if (unsampled(Discontinuity::ContactCurves))
+    for (const auto& [a, b] : touchingPairs(scene, params)) {
+      if (camera && a != b)
+        out.push_back("shapes " + quoted(scene.meshNames[a]) + " and " + quoted(scene.meshNames[b]) +
+                      " touch or cut each other in view: their contact curve moves on the film with the camera and is not a mesh edge");
+      else if (a == b)
+        out.push_back("shape " + quoted(scene.meshNames[a]) + " cuts or touches itself in view: the curve where it does is a visibility discontinuity, not a mesh edge");
+      else
+        out.push_back("shape " + quoted(scene.meshNames[params.moves(a) ? a : b]) + " touches or cuts " +
+                      quoted(scene.meshNames[params.moves(a) ? b : a]) + " in view: their contact curve moves with it and is not a mesh edge");
+    }
+  if (unsampled(Discontinuity::HardSpotCones))
+    for (const Light& l : scene.lights)
+      if (l.kind == LightKind::Spot && l.cosInner <= std::nextafter(l.cosOuter, 1.f))
+        out.push_back("spot light " + quoted(l.name) +
+                      " has a hard cone edge (cone_inner_degrees == cone_outer_degrees): its border moves across the moving surfaces it lights");
+  if (camera && unsampled(Discontinuity::EnvironmentTexelBorders))
+    for (const Light& l : scene.lights)
+      if (l.kind == LightKind::Environment)
+        out.push_back("environment map " + quoted(l.name) +
+                      " is seen by a moving camera: its texel borders move on the film (a constant environment has none)");
   return out;
 }
 
@@ -126,16 +160,20 @@ void validateGradientJob(const Scene& scene, const ParameterRegistry& params, co
     for (const ParameterSlot& s : params.slots())
       if (!s.kind->varianceDerivatives())
         fail("parameters", "'" + s.name + "': variance-aware losses have no derivatives for " + s.kind->name() + " parameters yet");
-  if (!params.hasShapeParameters()) return;
-  const std::string what = "shape parameters: ";
+  if (!params.hasVisibilityParameters()) return;
+  const bool camera = params.hasCameraParameters();
+  const std::string what = camera ? "camera parameters: " : "shape parameters: ";
   if (o.maxDepth != 1) fail("parameters", what + "the interior shape derivative covers direct illumination only; set max_depth 1");
   if (o.pixels.sampler->miniBatch()) fail("parameters", what + "the boundary terms need dLoss/dI at every pixel; use pixel_sampler all");
   if (o.variance.enabled) fail("parameters", what + "variance-aware losses have no shape derivatives yet");
-  for (uint32_t m : params.movingMeshes()) {
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    // A moving camera slides every camera hit along its surface (shape_interior.h).
+    if (!params.moves(m) && !camera) continue;
     const Material& mat = scene.materials[size_t(scene.meshMaterial[m])];
     if (mat.kind != BsdfKind::Diffuse || !mat.albedo.isConstant())
       fail("parameters", what + "shape '" + scene.meshNames[m] + "' has material '" + mat.name +
-                             "': the interior shape derivative covers diffuse, untextured materials only");
+                             "': the interior derivative of a moving " + (camera ? "camera" : "shape") +
+                             " covers diffuse, untextured materials only");
   }
   if (!o.boundary.allowUnsampled) {
     const std::vector<std::string> unsampled = unsampledDiscontinuities(scene, params);
@@ -144,7 +182,8 @@ void validateGradientJob(const Scene& scene, const ParameterRegistry& params, co
       for (const std::string& u : unsampled) why += (why.empty() ? "" : "; ") + u;
       fail("parameters", what + why +
                              ". No boundary term samples such a discontinuity, so the gradients would be biased: separate the shapes "
-                             "(or soften the cone: cone_inner_degrees < cone_outer_degrees), or accept the bias with "
+                             "(or soften the cone: cone_inner_degrees < cone_outer_degrees; or light a moving view with a constant environment), "
+                             "or accept the bias with "
                              "optimization.boundary.allow_unsampled_discontinuities");
     }
   }

@@ -20,12 +20,19 @@ namespace invr {
 // parameters it does not differentiate.
 void validateGradientJob(const Scene& scene, const ParameterRegistry& params, const GradientOptions& options);
 
-// The discontinuities that move with the job's shape parameters but that no boundary term samples,
-// one sentence each (empty: none, or no shape parameters). Looked for in the scene as given:
-//   - a moving shape touching or cutting another surface, or itself, where a camera sees it (the
-//     contact curve is not a mesh edge);
+// The discontinuities that move with the job's shape or camera parameters but that no registered
+// boundary term declares it samples (BoundaryTermKind::samples), one sentence each (empty: none,
+// or no such parameters). Looked for in the scene as given: the moving edges, each light's
+// shadows, and, which no term samples today,
+//   - a moving shape (any shape, under a moving camera) touching or cutting another surface, or
+//     itself, where a camera sees it (the contact curve is not a mesh edge);
 //   - a spot light with a hard cone edge (cone_inner_degrees == cone_outer_degrees), whose border
-//     moves across moving surfaces it lights.
+//     moves across moving surfaces it lights;
+//   - an image environment map seen by a moving camera (its texel borders).
 std::vector<std::string> unsampledDiscontinuities(const Scene& scene, const ParameterRegistry& params);
+// The same against the given term kinds instead of the registered ones.
+struct BoundaryTermKind;
+std::vector<std::string> unsampledDiscontinuities(const Scene& scene, const ParameterRegistry& params,
+                                                  const std::vector<const BoundaryTermKind*>& terms);
 
 }  // namespace invr

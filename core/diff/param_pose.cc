@@ -129,11 +129,8 @@ class TranslationKind final : public PoseKind {
     // In the scene's units: a step of 1/400 of its radius (0.011 on the zoo's pose scene).
     slot.learningRate = 2.5e-3f * scene.radius;
   }
-  Vec3 value(const RigidMotion& m) const override { return m.translation; }
-  void set(RigidMotion& m, const float* in, int c) const override {
-    if (c >= 0) m.translation[c] = in[0];
-    else m.translation = Vec3(in[0], in[1], in[2]);
-  }
+  Vec3 value(const RigidMotion& m) const override { return motionVector(m, 0); }
+  void set(RigidMotion& m, const float* in, int c) const override { setMotionVector(m, 0, in, c); }
 };
 
 class RotationKind final : public PoseKind {
@@ -149,11 +146,8 @@ class RotationKind final : public PoseKind {
     slot.upper = 360.f;
     slot.learningRate = 0.5f;  // degrees
   }
-  Vec3 value(const RigidMotion& m) const override { return m.rotationDegrees; }
-  void set(RigidMotion& m, const float* in, int c) const override {
-    if (c >= 0) m.rotationDegrees[c] = in[0];
-    else m.rotationDegrees = Vec3(in[0], in[1], in[2]);
-  }
+  Vec3 value(const RigidMotion& m) const override { return motionVector(m, 3); }
+  void set(RigidMotion& m, const float* in, int c) const override { setMotionVector(m, 3, in, c); }
 };
 
 class ScaleKind final : public PoseKind {

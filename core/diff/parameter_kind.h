@@ -10,6 +10,7 @@
 //   param_vertices.cc              shapes/<s>/vertices
 //   param_sampling.cc              sampling/light_logits, sampling/pixel_light_logits/<v>,
 //                                  sampling/rr_survival
+//   param_camera.cc                cameras/<v>/translation, rotation (or one component)
 //
 // Dispatch happens at bind time: a kind fills the registry's dense tables (ParameterTables), which
 // the estimators read while rendering. docs/architecture.md shows how to add one.
@@ -50,7 +51,7 @@ class ParameterKind {
   virtual ~ParameterKind() = default;
   // Its name in catalogs (ParameterInfo::kind), e.g. "albedo", "light_intensity".
   virtual const char* name() const = 0;
-  // The first part of its names ("materials", "lights", "shapes", "groups", "sampling").
+  // The first part of its names ("materials", "lights", "shapes", "groups", "sampling", "cameras").
   virtual std::vector<std::string> groups() const = 0;
   // Its property: the name part that selects it within its group ("albedo"; a sampling kind's
   // second part, "light_logits").
@@ -98,7 +99,7 @@ class ParameterKind {
 };
 
 // Registers a kind; a file defines one at namespace scope. `order` sorts kinds (and the catalog):
-// materials 10s, lights 20s, shapes 30s, sampling 40s. Throws std::logic_error for a name already
+// materials 10s, lights 20s, shapes 30s, sampling 40s, cameras 50s. Throws std::logic_error for a name already
 // registered.
 struct RegisterParameterKind {
   RegisterParameterKind(int order, std::unique_ptr<ParameterKind> kind);
@@ -119,5 +120,9 @@ int namedLight(const Scene& scene, const ParameterName& name);
 // Throws "the same value as parameter ..., listed twice" when `offset` (a table's entry for the
 // object, -1 if none) is an earlier slot's.
 void refuseSameValue(const ParameterName& name, int offset, const std::vector<ParameterSlot>& earlier);
+// A pose kind's vector in a rigid motion: its translation (firstField 0) or its rotation in
+// degrees (3), read whole, or written whole (component -1) or one component.
+Vec3 motionVector(const RigidMotion& m, int firstField);
+void setMotionVector(RigidMotion& m, int firstField, const float* in, int component);
 
 }  // namespace invr

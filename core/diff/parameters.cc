@@ -98,6 +98,14 @@ int namedLight(const Scene& scene, const ParameterName& n) {
   failParameter(n.given, "no light named '" + n.parts[1] + "'" + closestName(n.parts[1], names));
 }
 
+Vec3 motionVector(const RigidMotion& m, int firstField) { return firstField == 0 ? m.translation : m.rotationDegrees; }
+
+void setMotionVector(RigidMotion& m, int firstField, const float* in, int component) {
+  Vec3& v = firstField == 0 ? m.translation : m.rotationDegrees;
+  if (component >= 0) v[component] = in[0];
+  else v = Vec3(in[0], in[1], in[2]);
+}
+
 void refuseSameValue(const ParameterName& n, int offset, const std::vector<ParameterSlot>& earlier) {
   if (offset < 0) return;
   for (const auto& other : earlier)
@@ -276,6 +284,11 @@ void ParameterRegistry::addPointGradient(const Scene& scene, uint32_t mesh, Vec3
   for (const auto& f : t_.meshFields[mesh]) grad.add(f.index, dot(dLdp, scene.motion.pointVelocity(mesh, f.field, p)));
 }
 
+void ParameterRegistry::addCameraPointGradient(const Scene& scene, int view, Vec3 p, Vec3 dLdp, PathGradient& grad) const {
+  if (!movesCamera(view)) return;
+  for (const auto& f : t_.cameraFields[size_t(view)]) grad.add(f.index, dot(dLdp, scene.cameraPointVelocity(view, f.field, p)));
+}
+
 void ParameterRegistry::addNormalGradient(const Scene& scene, uint32_t mesh, Vec3 n, Vec3 dLdn, PathGradient& grad) const {
   if (!moves(mesh)) return;
   for (const auto& f : t_.meshFields[mesh]) grad.add(f.index, dot(dLdn, scene.motion.normalVelocity(mesh, f.field, n)));
@@ -298,6 +311,7 @@ void ParameterRegistry::write(const std::vector<float>& theta, Scene& scene, boo
   SceneChanges changes;
   for (const auto& s : slots_) s.kind->write(theta.data() + s.offset, s, t_, scene, refreshSampling, changes);
   if (!t_.rigidMeshes.empty()) scene.applyShapeMotion(t_.rigidMeshes);
+  if (hasCameraParameters()) scene.applyCameraMotion();
   // Logits are sampling itself: always applied. Power-based selection follows emission unless
   // the caller keeps sampling fixed.
   if (changes.selection || (changes.emission && refreshSampling)) scene.updateLightSelection();

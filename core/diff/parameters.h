@@ -22,6 +22,11 @@
 //                               starting at the mesh as described. Not with the shape's (or its
 //                               group's) pose parameters. Flat-shaded meshes only.
 //                               Mitsuba: <id>.vertex_positions, <id>.positions.
+// Camera parameters (param_camera.cc): a view's pose relative to the camera as described, about
+// its eye; <view> is the camera's name or index, or * for every view together (the same offset)
+//   cameras/<view>/translation  x, y, z in world space: 3 values, starting at 0
+//   cameras/<view>/rotation     Euler degrees about x, then y, then z (world axes): 3 values
+//   cameras/<view>/translation/x (y, z), cameras/<view>/rotation/x (y, z)   one component alone
 // Sampling parameters (Yan et al. 2024; they change a render's noise, never its mean):
 //   sampling/light_logits                 one logit per light: NEE picks lights by their softmax
 //   sampling/pixel_light_logits/<view>    per cell of a map over view <view>'s film: one logit per light
@@ -100,6 +105,10 @@ struct ParameterTables {
   };
   std::vector<int> vertexField;
   std::vector<VertexField> vertexFields;
+  // Camera parameters (param_camera.cc): per view the theta index of each motion component that
+  // moves its camera (Scene::cameraPointVelocity's k, 0-5); empty for a view that does not move.
+  std::vector<std::vector<ShapeField>> cameraFields;
+  bool cameraMoves(int view) const { return view >= 0 && size_t(view) < cameraFields.size() && !cameraFields[size_t(view)].empty(); }
   size_t normalAdjoints = 0;
   int nextSlot = 0;  // the index the slot being attached will have
 
@@ -172,10 +181,25 @@ class ParameterRegistry {
   TriangleMesh vertexMesh(const Scene& scene, const ParameterSlot& slot, const float* values) const;
   // Whether the mesh's vertices are a parameter (shapes/<s>/vertices).
   bool deforms(uint32_t mesh) const { return t_.deforms(mesh); }
+  // Camera parameters: whether any is registered, and whether view v's camera moves.
+  bool hasCameraParameters() const { return !t_.cameraFields.empty(); }
+  bool movesCamera(int view) const { return t_.cameraMoves(view); }
+  // Whether mesh m moves relative to view v's camera (it moves, or the camera does): its edges are
+  // then discontinuities that move on that view's film.
+  bool movesOnFilm(uint32_t mesh, int view) const { return moves(mesh) || movesCamera(view); }
+  // Parameters that move visibility discontinuities on the film (shapes or cameras): the boundary
+  // terms and the interior terms of moving points apply.
+  bool hasVisibilityParameters() const { return hasShapeParameters() || hasCameraParameters(); }
   // The shape-parameter adjoints of the estimators: the derivative of the loss with respect to a
   // point that moves with a moving mesh, taken to the parameters (no-op for a mesh that does not
   // move). A surface point (a hit: its triangle and barycentrics) with its unit shading normal:
   void addHitGradient(const Scene& scene, const SurfaceHit& hit, Vec3 dLdp, Vec3 dLdn, PathGradient& grad) const;
+  // A point p carried with view v's camera, dLdp the derivative of the loss with respect to moving
+  // it: dLdp . dp/dtheta_k for each component k of the view's camera parameters (no-op when the
+  // camera does not move). The interior term passes the camera-ray point p = o + t d at fixed t
+  // (the ray moves with the camera); a boundary term passes minus its film-space gradient at a
+  // fixed world point, because moving the camera moves such a point the other way on the film.
+  void addCameraPointGradient(const Scene& scene, int view, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
   // A point p = lerp(v0, v1, t) of the edge between mesh vertices v0 and v1:
   void addEdgeGradient(const Scene& scene, uint32_t mesh, uint32_t v0, uint32_t v1, float t, Vec3 p, Vec3 dLdp, PathGradient& grad) const;
   // Takes the vertex-normal entries of `gradient` (adjointSize() long; scene at the parameters the

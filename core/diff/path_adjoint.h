@@ -10,8 +10,8 @@
 // the radiance gathered so far) and replays those records in finish(), once L is known. This is
 // path replay (Vicini et al. 2021) without the second walk: the record costs O(depth) memory per
 // path, the random numbers are consumed once. Pdfs, MIS and roulette weights are detached.
-// When the camera ray hits a mesh that shape parameters move, the visitor also collects the
-// interior shape derivative of the direct light there (shape_interior.h).
+// When the camera ray hits a mesh that shape parameters move, or the view's camera moves, the
+// visitor also collects the interior derivative of the direct light there (shape_interior.h).
 #pragma once
 
 #include "core/error.h"
@@ -25,8 +25,16 @@ namespace invr {
 
 class PathAdjointVisitor {
  public:
-  PathAdjointVisitor(const Scene& scene, const ParameterRegistry& params, Rgb adjoint, PathGradient& grad, Vec3 cameraDir = Vec3(0.f))
-      : scene_(scene), params_(params), adjoint_(adjoint), grad_(grad), cameraDir_(cameraDir), shapes_(params.hasShapeParameters()) {}
+  // `view`: the camera path's view (its camera parameters take the interior term), or -1.
+  PathAdjointVisitor(const Scene& scene, const ParameterRegistry& params, Rgb adjoint, PathGradient& grad, Vec3 cameraDir = Vec3(0.f),
+                     int view = -1)
+      : scene_(scene),
+        params_(params),
+        adjoint_(adjoint),
+        grad_(grad),
+        cameraDir_(cameraDir),
+        cameraView_(params.movesCamera(view) ? view : -1),
+        shapes_(params.hasShapeParameters() || cameraView_ >= 0) {}
 
   void emission(Rgb weight, Rgb Le, const LightSampleRef& light, float perUnit) {
     L_ += weight * Le;
@@ -39,7 +47,7 @@ class PathAdjointVisitor {
   }
   void direct(Rgb beta, const DirectPath& p, const WalkVertex& v) {
     L_ += beta * p.contribution();
-    if (shapes_ && v.depth == 0 && params_.moves(v.hit->mesh)) {
+    if (shapes_ && v.depth == 0 && movesOnFilm(v.hit->mesh)) {
       beginShape(v);
       const Vec3 wi = v.frame->toWorld(p.wiLocal);
       shape_.add(dot3(adjoint_, beta * p.contribution()), lightEndGradient(scene_, p.light, v.hit->p, v.hit->ns, wi));
@@ -50,7 +58,7 @@ class PathAdjointVisitor {
     if (p.emissionPerUnit > 0.f) lightGradient(p.light, beta * p.weight * p.bsdfValue * p.emissionPerUnit);
   }
   void bounce(const WalkVertex& v, Vec3 wi) {
-    if (shapes_ && v.depth == 0 && params_.moves(v.hit->mesh)) beginShape(v);
+    if (shapes_ && v.depth == 0 && movesOnFilm(v.hit->mesh)) beginShape(v);
     if (!hasBsdfParameters(params_, v.material)) return;
     INVR_INVARIANT(count_ < size_t(kMaxWalkDepth), "more bounces than max_depth allows");  // one per depth
     if (count_ < size_t(kMaxWalkDepth))
@@ -78,8 +86,9 @@ class PathAdjointVisitor {
     Rgb f, gathered;
   };
   static float dot3(Rgb a, Rgb b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+  bool movesOnFilm(uint32_t mesh) const { return cameraView_ >= 0 || params_.moves(mesh); }
   void beginShape(const WalkVertex& v) {
-    if (!shape_.active()) shape_.reset(*v.hit, cameraDir_);
+    if (!shape_.active()) shape_.reset(*v.hit, cameraDir_, cameraView_);
   }
   // d(contribution)/d(the light's value): its intensity, or the environment texel `ref` looks up.
   void lightGradient(const LightSampleRef& ref, Rgb perUnitContribution) {
@@ -98,6 +107,7 @@ class PathAdjointVisitor {
   Rgb adjoint_;
   PathGradient& grad_;
   Vec3 cameraDir_;
+  int cameraView_;
   bool shapes_;
   CameraHitShapeGradient shape_;
   Rgb L_{0.f};
@@ -109,17 +119,17 @@ class PathAdjointVisitor {
 
 // One camera path: its radiance and, with `grad` set, adjoint * dL/dtheta added to it. The walk is
 // the same with and without `grad` (equal samplers give equal radiance). `primary`: the camera
-// ray's hit when traced beforehand (walkPath).
+// ray's hit when traced beforehand (walkPath). `view`: the path's view (camera parameters), or -1.
 template <class Direct>
 Rgb walkCameraPath(const Scene& scene, const ParameterRegistry* params, Vec3 o, Vec3 d, Sampler& sampler, const WalkSettings& s,
                    Direct& direct, PathContext* ctx, Rgb adjoint = Rgb(0.f), PathGradient* grad = nullptr,
-                   const PrimaryHit* primary = nullptr) {
+                   const PrimaryHit* primary = nullptr, int view = -1) {
   if (!grad) {
     RadianceVisitor v;
     walkPath(scene, o, d, sampler, s, direct, v, ctx, primary);
     return v.L;
   }
-  PathAdjointVisitor v(scene, *params, adjoint, *grad, d);
+  PathAdjointVisitor v(scene, *params, adjoint, *grad, d, view);
   walkPath(scene, o, d, sampler, s, direct, v, ctx, primary);
   v.finish();
   return v.radiance();

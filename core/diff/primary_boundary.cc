@@ -172,7 +172,14 @@ std::vector<PrimaryBoundary::Candidate> PrimaryBoundary::candidates(int view, si
   std::vector<Candidate> out;
   size_t hidden = 0;
   const std::vector<std::vector<Vec3>> corners = lightCorners(scene_);
-  for (uint32_t m : params_.movingMeshes()) {
+  // A moving camera moves every mesh's edges on its film.
+  std::vector<uint32_t> meshes = params_.movingMeshes();
+  if (params_.movesCamera(view)) {
+    meshes.resize(scene_.meshes.size());
+    for (uint32_t m = 0; m < meshes.size(); ++m) meshes[m] = m;
+  }
+  for (uint32_t m : meshes) {
+    if (m >= topology_.size()) continue;
     const TriangleMesh& mesh = scene_.meshes[m];
     const std::vector<Vec3>& normals = mesh.faceNormals;
     const std::vector<MeshEdge>& edges = topology_[m].edges();
@@ -305,7 +312,9 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     // Where P lies on the unclipped edge, for vertex parameters.
     const Vec3 A = scene_.meshes[e.mesh].positions[e.v0], AB = scene_.meshes[e.mesh].positions[e.v1] - A;
     const float tEdge = std::clamp(dot(P - A, AB) / dot(AB, AB), 0.f, 1.f);
-    params_.addEdgeGradient(scene_, e.mesh, e.v0, e.v1, tEdge, P, (dx * n.x + dy * n.y) * w, grad);  // w * n . dfilm/dP
+    const Vec3 g = (dx * n.x + dy * n.y) * w;  // w * n . dfilm/dP
+    params_.addEdgeGradient(scene_, e.mesh, e.v0, e.v1, tEdge, P, g, grad);
+    params_.addCameraPointGradient(scene_, view, P, -g, grad);  // the camera moving moves P the other way on the film
   });
   return st;
 }
@@ -341,7 +350,7 @@ const RegisterBoundaryTerm kPrimary({
           }
           return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
                  " edge samples per view and step on silhouette, crease and (smooth meshes) shadow-terminator edges of moving "
-                 "meshes, by clipped film length times a bound on the jump (creases between flat faces: |n0 - n1|; terminators: the "
+                 "meshes (of every mesh in a view whose camera moves), by clipped film length times a bound on the jump (creases between flat faces: |n0 - n1|; terminators: the "
                  "lit side's shading cosine), creases and terminators that a closed mesh seen from outside turns away from the eye "
                  "skipped (counted in the stats' hidden_edges_skipped), both sides with the same random numbers, hidden edge "
                  "points skipped; both sides traced with the interior estimator, a few float roundings of the edge point off it; box "
@@ -349,6 +358,7 @@ const RegisterBoundaryTerm kPrimary({
                  counts;
         },
     .memoryBytes = {},
+    .samples = {Discontinuity::MeshEdges},
 });
 
 }  // namespace

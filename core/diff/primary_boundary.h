@@ -7,7 +7,8 @@
 // "pixel filter handled" option; we do not use the antithetic variant of §6).
 //
 // Candidate edges are the silhouette (from the eye), crease and, on smooth meshes, shadow
-// terminator edges (terminatorJumpBound) of moving meshes, clipped to
+// terminator edges (terminatorJumpBound) of moving meshes (of every mesh when the view's camera
+// moves: its parameters take -n . J D(x) for the camera's velocity field D), clipped to
 // the near plane and the film; a sample picks an edge proportionally to its clipped film length
 // times a bound on its radiance jump (creaseJumpBound), and a point uniformly along that length,
 // then traces one camera sample on

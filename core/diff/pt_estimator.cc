@@ -22,7 +22,7 @@ class PtEstimator final : public InteriorEstimator {
     WalkSettings walk = walk_;
     walk.lightPmf = pixelLightPmf(scene_, view_, in.x, in.y, pmf);
     NeeMisDirect direct{scene_, walk.lightPmf};
-    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk, direct, &ctx, adjoint, grad, in.primary);
+    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk, direct, &ctx, adjoint, grad, in.primary, view_);
   }
   Rgb varianceSample(const CameraSampleInput& in, Sampler& sampler, SampleCounters& counters, const VarianceWeights& weights,
                      PathGradient& grad) const override {

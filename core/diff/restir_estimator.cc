@@ -55,7 +55,7 @@ class RestirEstimator final : public InteriorEstimator {
     auto direct = [&](const ShadingPoint& sp, int, Sampler& smp, PathContext* c, DirectPath& out) {
       return combine(in, sp, smp, c, counters.restir, out, reservoir);
     };
-    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad, in.primary);
+    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad, in.primary, view_);
   }
 
  private:

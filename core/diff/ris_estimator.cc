@@ -11,7 +11,7 @@ namespace {
 class RisEstimator final : public InteriorEstimator {
  public:
   explicit RisEstimator(const EstimatorSetup& s)
-      : scene_(s.scene), params_(s.params), candidates_(s.options.restir.candidates), visibility_(s.options.restir.visibilityInTarget) {
+      : scene_(s.scene), params_(s.params), candidates_(s.options.restir.candidates), visibility_(s.options.restir.visibilityInTarget), view_(s.view) {
     walk_.maxDepth = 1;
     walk_.bsdfMis = false;
   }
@@ -19,7 +19,7 @@ class RisEstimator final : public InteriorEstimator {
              StoredReservoir*) const override {
     PathContext ctx{&counters.rays};
     RisDirect direct{scene_, candidates_, visibility_};
-    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad, in.primary);
+    return walkCameraPath(scene_, &params_, in.o, in.d, sampler, walk_, direct, &ctx, adjoint, grad, in.primary, view_);
   }
 
  private:
@@ -27,6 +27,7 @@ class RisEstimator final : public InteriorEstimator {
   const ParameterRegistry& params_;
   int candidates_;
   bool visibility_;
+  int view_;
   WalkSettings walk_;
 };
 

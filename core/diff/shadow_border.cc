@@ -38,7 +38,8 @@ SurfaceHit receiverAt(const Scene& scene, const SurfaceHit& hit, Vec3 q) {
 }
 
 void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, ShadowSource source,
-                        uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh) {
+                        uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh, int view) {
+  const bool cameraMoves = params.movesCamera(view);
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     if (m == skipMesh || m >= topology.size() || topology[m].edges().empty()) continue;
     const TriangleMesh& mesh = scene.meshes[m];
@@ -52,15 +53,16 @@ void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, con
       const Vec3 mid = (se.a + se.b) * 0.5f, dir = -normalize(source.from(mid));
       SurfaceHit hit;
       const bool falls = scene.intersect(mid + dir * offsetAt(mid), dir, hit);
-      const bool moving = params.moves(m) || (falls && params.moves(hit.mesh));
+      const bool moving = cameraMoves || params.moves(m) || (falls && params.moves(hit.mesh));
       edges.push_back(se);
       weights.push_back(len * (falls ? 1.f : kUnlikelyShadowEdgeWeight) * (moving ? 1.f : kUnlikelyShadowEdgeWeight));
     }
   }
 }
 
-bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
+bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, int view, ShadowSource source, const ShadowEdge& se, float t,
                        ShadowBorderPoint& bp, RayStats& rays) {
+  const Camera& cam = scene.cameras[size_t(view)];
   const int W = scene.width, H = scene.height;
   bp.t = t;
   bp.e = se.a + (se.b - se.a) * t;
@@ -72,7 +74,7 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   // Started just past the edge so the grazing faces of the edge itself are not hit.
   ++rays.shadow;
   if (!scene.intersect(bp.e + dir * offsetAt(bp.e), dir, bp.hit)) return false;
-  if (!params.moves(se.mesh) && !params.moves(bp.hit.mesh)) return false;  // nothing here moves
+  if (!params.moves(se.mesh) && !params.moves(bp.hit.mesh) && !params.movesCamera(view)) return false;  // nothing here moves
   const Vec3 y = bp.hit.p, nr = bp.hit.ng;
   bp.denom = dot(nr, bp.toE);
   if (std::abs(bp.denom) < 1e-8f * distE) return false;  // grazing the receiver: measure zero
@@ -91,6 +93,7 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   const float lineDenom = dot(nr, line);
   if (std::abs(lineDenom) < 1e-8f * length(line)) return false;
   const Vec3 drawn = bp.e + line * ((lift - dot(nr, bp.e - y)) / lineDenom) - nr * lift;
+  bp.drawn = drawn;
   if (!(dot(drawn - cam.eye, cam.forward) > 0.f)) return false;
   bp.x = filmPosition(cam, drawn, W, H);
   if (!(bp.x.x >= 0.f && bp.x.y >= 0.f && bp.x.x < float(W) && bp.x.y < float(H))) return false;
@@ -128,7 +131,7 @@ bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, cons
   return true;
 }
 
-void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
+void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, int view, const ShadowEdge& se, const ShadowBorderPoint& bp,
                              double w, PathGradient& grad) {
   // dLoss/dtheta_k = w (n . J dy/dtheta_k), dy/dtheta_k = ds_k (e - l) + s de_k with
   // ds_k = (nr . u_k - s nr . de_k) / (nr . (e - l)); u_k, de_k the receiver's and the occluder's
@@ -139,6 +142,9 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
   const float c = dot(g, bp.toE) / bp.denom;
   params.addEdgeGradient(scene, se.mesh, se.v0, se.v1, bp.t, bp.e, (g - nr * c) * bp.s, grad);
   params.addHitGradient(scene, bp.hit, nr * c, Vec3(0.f), grad);
+  // The camera: the border stays where it is in the world and its film position x moves by
+  // -J D_k(drawn) (parameters.h, addCameraPointGradient).
+  params.addCameraPointGradient(scene, view, bp.drawn, -g, grad);
 }
 
 BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
@@ -150,7 +156,7 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
   std::vector<ShadowEdge> edges;
   std::vector<float> weights;
   for (uint32_t j = 0; j < sources.size(); ++j)
-    if (sources[j].weight > 0.0) collectShadowEdges(scene, params, topology, sources[j].at, j, edges, weights, sources[j].skipMesh);
+    if (sources[j].weight > 0.0) collectShadowEdges(scene, params, topology, sources[j].at, j, edges, weights, sources[j].skipMesh, view);
   st.candidateEdges = edges.size();
   if (edges.empty() || samples <= 0) return st;
   const Distribution1D pick(weights);
@@ -162,7 +168,7 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
     const ShadowEdge& se = edges[k];
     const BorderSource& src = sources[se.source];
     ShadowBorderPoint bp;
-    if (!shadowBorderPoint(scene, params, cam, src.at, se, t, bp, counters.rays)) return;
+    if (!shadowBorderPoint(scene, params, view, src.at, se, t, bp, counters.rays)) return;
     const Rgb minus = radiance(se.source, bp.side[0], cam.eye, counters.rays);
     const Rgb plus = radiance(se.source, bp.side[1], cam.eye, counters.rays);
     const Rgb diff = minus - plus;
@@ -170,7 +176,7 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
     const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, scene.width - 1), std::clamp(int(bp.x.y), 0, scene.height - 1));
     // pdf of (source, edge, t): the edge's probability (t is uniform on [0, 1]).
     const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) * src.weight / (double(pick.pmf(k)) * double(samples));
-    if (w != 0.0) addShadowBorderGradient(scene, params, se, bp, w, grad);
+    if (w != 0.0) addShadowBorderGradient(scene, params, view, se, bp, w, grad);
   });
   return st;
 }

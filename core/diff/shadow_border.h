@@ -51,9 +51,11 @@ struct ShadowEdge {
 constexpr float kUnlikelyShadowEdgeWeight = 0.05f;
 
 // Appends the silhouette edges every mesh with a topology (but `skipMesh`: the emitter a source
-// lies on) shows `source`.
+// lies on) shows `source`. `view`: the view whose film the borders are sampled on (a moving camera
+// moves every border on it).
 void collectShadowEdges(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, ShadowSource source,
-                        uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh = UINT32_MAX);
+                        uint32_t sourceIndex, std::vector<ShadowEdge>& edges, std::vector<float>& weights, uint32_t skipMesh = UINT32_MAX,
+                        int view = -1);
 
 struct ShadowBorderPoint {
   Vec3 e, toE;       // the edge point and e - l (directional sources: the unit travel direction d)
@@ -61,6 +63,7 @@ struct ShadowBorderPoint {
   SurfaceHit hit;    // the shadow point y on its receiver
   float s = 0.f;     // |y - l| / |e - l| (directional: 1)
   float denom = 0.f; // nr . toE
+  Vec3 drawn;        // where the renderer draws the border, on the receiver's plane
   Vec2 x, n;         // film position and the unit film normal of the border there
   float speed = 0.f; // |dx/dt| in pixels
   Vec3 jx, jy;       // d(film x, y)/dy
@@ -70,19 +73,20 @@ struct ShadowBorderPoint {
   SurfaceHit side[2];
 };
 
-// The border point of edge `se` at t for `source`; false when there is none on the film or
-// nothing there moves. Counts the rays it traces (up to two: edge to receiver, receiver to eye)
-// in rays.shadow.
-bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, const Camera& cam, ShadowSource source, const ShadowEdge& se, float t,
+// The border point of edge `se` at t for `source` on view `view`'s film; false when there is none
+// on the film or nothing there moves (the occluder, the receiver, or the view's camera). Counts
+// the rays it traces (up to two: edge to receiver, receiver to eye) in rays.shadow.
+bool shadowBorderPoint(const Scene& scene, const ParameterRegistry& params, int view, ShadowSource source, const ShadowEdge& se, float t,
                        ShadowBorderPoint& out, RayStats& rays);
 
 // The receiver `hit`'s surface (its triangle's normal, interpolated shading normal and uv) at q, a
 // point of that triangle's plane, inside the triangle or just beyond it.
 SurfaceHit receiverAt(const Scene& scene, const SurfaceHit& hit, Vec3 q);
 
-// Adds w * (n . J dy/dtheta) for the occluder's and the receiver's shape parameters, where w is
-// the sample's weight: adjoint . ΔL * speed / pdf.
-void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, const ShadowEdge& se, const ShadowBorderPoint& bp,
+// Adds w * (n . dx/dtheta) for the occluder's and the receiver's shape parameters (x moving with
+// dy/dtheta) and view `view`'s camera parameters (x moving as the camera does), where w is the
+// sample's weight: adjoint . ΔL * speed / pdf.
+void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params, int view, const ShadowEdge& se, const ShadowBorderPoint& bp,
                              double w, PathGradient& grad);
 
 // What the point or spot light l adds to surface point `at` seen from `eye`: f |cos| I falloff / r^2,

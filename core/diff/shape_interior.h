@@ -11,8 +11,14 @@
 // by a BSDF sample is differentiated in the same area measure (pdf_bsdf * |cos_y| / r^2 detached),
 // so the two MIS halves stay a partition of one integral over y and the sum is unbiased.
 //
-// Only diffuse, untextured materials on moving meshes and direct illumination (max_depth 1) are
-// supported; the job builder refuses the rest (problem.cc).
+// A moving camera (cameras/<view>/..., param_camera.cc) moves the ray instead: its point at fixed
+// distance t, c = o + t d, moves with the camera's velocity field D_k (o' = D_k(o), d' its linear
+// part applied to d, so c' = D_k(c)), and the hit slides along the fixed surface,
+// p' = P c', P = I - d ng^T / (ng . d); the shading normal follows through the barycentric
+// gradient. Every camera hit of a moving view takes this term, whatever it hits.
+//
+// Only diffuse, untextured materials on moving meshes (every mesh, when a camera moves) and direct
+// illumination (max_depth 1) are supported; the job check refuses the rest (gradient_job_check.cc).
 #pragma once
 
 #include <cmath>
@@ -89,9 +95,11 @@ inline LogGeometryGradient lightEndGradient(const Scene& scene, const LightSampl
 // contributions, then maps them to the shape parameters through the camera-ray constraint.
 class CameraHitShapeGradient {
  public:
-  void reset(const SurfaceHit& hit, Vec3 rayDir) {
+  // `view`: the camera's view when it moves (its parameters take the camera term), else -1.
+  void reset(const SurfaceHit& hit, Vec3 rayDir, int view = -1) {
     hit_ = hit;
     d_ = rayDir;
+    view_ = view;
     dp_ = dn_ = Vec3(0.f);
     active_ = true;
   }
@@ -122,6 +130,11 @@ class CameraHitShapeGradient {
     // dp . p'_k + m . (p'_k - V_k) = (ng ((dp + m) . d) / (ng . d) - m) . V_k
     const Vec3 g = ng * (dot(dp_ + m, d_) / nd) - m;
     params.addHitGradient(scene, hit_, g, dn_, grad);
+    // The camera: (dp + m) . P c'_k = (P^T (dp + m)) . D_k(c), with c = p (the hit is on the ray).
+    if (view_ >= 0) {
+      const Vec3 dpm = dp_ + m;
+      params.addCameraPointGradient(scene, view_, hit_.p, dpm - ng * (dot(d_, dpm) / nd), grad);
+    }
   }
 
  private:
@@ -148,6 +161,7 @@ class CameraHitShapeGradient {
 
   SurfaceHit hit_;
   Vec3 d_{0.f}, dp_{0.f}, dn_{0.f};
+  int view_ = -1;
   bool active_ = false;
 };
 

@@ -42,10 +42,10 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   // Per view: dL/dV, the pass's mean and second moment, the variance map (RGB floats each); per
   // thread: one walk's decision records (variance_visitor.h), at most a few hundred bytes per vertex.
   if (g.variance.enabled) w.variance = double(maxShard) * pixels * 12 * 4 + double(threads) * double(g.maxDepth + 1) * 512;
-  // Shape parameters: 1.5 welded edges per triangle (MeshEdge, 20 bytes) plus the weld map per
+  // Shape and camera parameters: 1.5 welded edges per triangle (MeshEdge, 20 bytes) plus the weld map per
   // vertex; a pass's candidate lists hold at most every edge once per light point or environment
   // direction (ShadowEdge, 32 bytes, and its weight), and the film-space primary candidates.
-  if (p.params.hasShapeParameters()) {
+  if (p.params.hasVisibilityParameters()) {
     double points = 0;
     for (const Light& l : s.lights) points += l.kind == LightKind::Area || l.isInfinite() ? double(g.boundary.lightPoints) : l.isDelta() ? 1.0 : 0.0;
     w.boundary = tris * 1.5 * 20 + tris * 3 * 4 + tris * 1.5 * (points + 1) * 36;

@@ -40,8 +40,12 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
   }
   const auto& g = p.gradient;
   std::vector<std::string> est;
-  const bool shapes = p.params.hasShapeParameters();
-  if (shapes)
+  const bool shapes = p.params.hasVisibilityParameters();
+  if (p.params.hasCameraParameters())
+    est.push_back("primal and derivative: direct illumination; interior term (Wang et al. 2023, Eq. 12-13) for materials and lights, and "
+                  "for the moving cameras at every camera hit (the camera ray moves, its hit slides along the surface; diffuse untextured "
+                  "meshes)" + std::string(p.params.hasShapeParameters() ? " and for shapes at the camera hit" : ""));
+  else if (shapes)
     est.push_back("primal and derivative: direct illumination; interior term (Wang et al. 2023, Eq. 12-13) for materials and lights, and "
                   "for shapes at the camera hit (the hit slides along the fixed camera ray, normals turn; diffuse untextured moving meshes)");
   else if (g.maxDepth > 1)
@@ -94,7 +98,7 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
     for (const BoundaryTermKind* term : boundaryTermsFor(s, p.params, g)) est.push_back(term->describe(input));
     const std::vector<std::string> unsampled = unsampledDiscontinuities(s, p.params);
     if (unsampled.empty())
-      est.push_back("discontinuities not sampled: none found (no moving shape touches another surface or itself where a camera sees it, in the scene as given, "
+      est.push_back("discontinuities not sampled: none found (no moving shape, or any shape when a camera moves, touches another surface or itself where a camera sees it, in the scene as given, "
                     "and no spot cone is hard; contact curves and hard cone borders would not be sampled)");
     for (const std::string& u : unsampled)
       est.push_back("BIASED (boundary.allow_unsampled_discontinuities): " + u + "; no boundary term samples it");

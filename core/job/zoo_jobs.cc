@@ -131,6 +131,16 @@ v1::JobSpec zooJob(const std::string& name) {
     o->set_loss("l2");
     o->set_steps(150);
     o->set_learning_rate_half_life(75);
+  } else if (name == "calibrate") {
+    // Camera parameters: the camera starts 0.08 off in x, y and z and turned 1.5 degrees about
+    // each axis (about 4 pixels of image motion each), and is recovered from the one target.
+    // Sideways translation and a turn move the image alike (only parallax tells them apart), so
+    // Adam walks a long valley: 600 steps (150 at half these rates stopped at 0.46 of 1.06).
+    param(o, "cameras/photo/translation", 0.08, 0.01);
+    param(o, "cameras/photo/rotation", 1.5, 0.1);
+    o->set_loss("l2");
+    o->set_steps(600);
+    o->set_learning_rate_half_life(200);
   } else if (name == "octagon" || name == "relief") {
     // Meshes (Wang et al. 2023, Figs. 13-14): every vertex of a start mesh (an icosphere around the
     // solid, a plane across the relief) with Large Steps (Nicolet et al. 2021) and Adam with one

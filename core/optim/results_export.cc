@@ -85,8 +85,8 @@ v1::JobSpec exportedJob(const v1::JobSpec& job, const Problem& p, const std::vec
     const size_t views = p.scene->cameras.size();
     bool all = true;
     for (size_t v = 0; v < views; ++v) all = all && fs::exists(resultsDir / ("target_view" + std::to_string(v) + ".exr"));
-    notes.push_back("the exported job has no truth (shape parameters are relative to the shapes' geometry, which the export writes as "
-                    "recovered): it goes on against the run's target images");
+    notes.push_back("the exported job has no truth (shape and camera parameters are relative to the shapes' geometry and the cameras, "
+                    "which the export writes as recovered): it goes on against the run's target images");
     if (all) {
       const fs::path dir = xml.has_parent_path() ? xml.parent_path() : fs::path(".");
       fs::create_directories(dir / "targets");

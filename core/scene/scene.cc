@@ -76,6 +76,42 @@ void Scene::updateMeshPositions(uint32_t mesh, std::vector<Vec3> positions) {
   ++geometryVersion_;
 }
 
+void Scene::applyCameraMotion() {
+  if (cameraRest_.size() != cameras.size()) {
+    cameraRest_ = cameras;
+    cameraApplied_.assign(cameras.size(), RigidMotion{});
+    // As for a smooth mesh that moves (applyShapeMotion): where its shading normal turns away from
+    // the eye the lobe would switch, along a curve that moves on the film with the camera.
+    for (size_t m = 0; m < meshes.size(); ++m)
+      if (!meshes[m].normals.empty()) materials[size_t(meshMaterial[m])].geometricSide = true;
+  }
+  cameraMotion.resize(cameras.size());
+  cameraVelocity_.resize(cameras.size());
+  bool moved = false;
+  for (size_t v = 0; v < cameras.size(); ++v) {
+    const Camera& rest = cameraRest_[v];
+    const RigidMotion& mo = cameraMotion[v];
+    const Affine3d map = motionMap(mo, rest.eye), inverse = map.inverse();
+    for (int k = 0; k < 6; ++k) cameraVelocity_[v][size_t(k)] = motionDerivative(mo, rest.eye, k) * inverse;
+    if (mo == cameraApplied_[v]) continue;
+    cameraApplied_[v] = mo;
+    Camera& c = cameras[v];
+    c.eye = map.point(rest.eye);
+    // A rotation keeps the frame orthonormal; normalising only drops the float rounding.
+    c.forward = normalize(map.vector(rest.forward));
+    c.right = normalize(map.vector(rest.right));
+    c.up = normalize(map.vector(rest.up));
+    moved = true;
+  }
+  if (moved) ++cameraVersion_;
+}
+
+Vec3 Scene::cameraPointVelocity(int view, int k, Vec3 p) const {
+  if (size_t(view) < cameraVelocity_.size()) return cameraVelocity_[size_t(view)][size_t(k)].point(p);
+  // Never applied: the camera is at rest, its motion the identity.
+  return motionDerivative(RigidMotion{}, cameras[size_t(view)].eye, k).point(p);
+}
+
 void Scene::applyShapeMotion(const std::vector<uint32_t>& optimised) {
   bool rebuild = false;
   for (uint32_t m : optimised) {

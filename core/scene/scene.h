@@ -2,6 +2,7 @@
 // Built from the protobuf description by scene_builder.cc; immutable while rendering.
 #pragma once
 
+#include <array>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -130,6 +131,21 @@ class Scene {
   // Incremented whenever vertices move, so caches of surface positions know to re-place.
   uint64_t geometryVersion() const { return geometryVersion_; }
 
+  // Optimisable camera poses (cameras/<view>/translation|rotation, core/diff/param_camera.cc): per
+  // view a rigid motion of the camera as described (its rest pose) about its eye: the eye moves by
+  // the translation, the look frame turns by the rotation (Euler degrees, x then y then z). Empty
+  // until a camera parameter writes it.
+  std::vector<RigidMotion> cameraMotion;
+  // Places the cameras at rest -> cameraMotion (the rest poses are captured on the first call,
+  // which also makes smooth meshes shade by their geometric side, as moving ones do) and
+  // recomputes their velocity fields; counts a camera version when one moved.
+  void applyCameraMotion();
+  // dp/dtheta_k of a point p carried with view v's camera, k a RigidMotion component 0-5 (per
+  // degree for rotations): the velocity field dA/dtheta_k A^-1 of its motion A.
+  Vec3 cameraPointVelocity(int view, int k, Vec3 p) const;
+  // Incremented whenever a camera moves (0: every camera as described).
+  uint64_t cameraVersion() const { return cameraVersion_; }
+
   // Unit geometric normal of a triangle (from its winding), precomputed: cheaper than a cross
   // product and a square root on every hit.
   Vec3 faceNormal(uint32_t mesh, uint32_t tri) const { return meshes[mesh].faceNormals[tri]; }
@@ -207,6 +223,10 @@ class Scene {
   mutable std::mutex deformedMutex_;
   bool occludedByStatic(Vec3 o, Vec3 d, float tmax) const;
   uint64_t geometryVersion_ = 0;
+  std::vector<Camera> cameraRest_;
+  std::vector<RigidMotion> cameraApplied_;
+  std::vector<std::array<Affine3d, 6>> cameraVelocity_;
+  uint64_t cameraVersion_ = 0;
   bool accelerated_ = false;
 };
 

@@ -440,6 +440,36 @@ v1::Scene pose() {
   return m.s;
 }
 
+// Camera parameters (calibration): a roughly known camera recovered from one image of a known
+// scene. Three flat-shaded boxes of different colours and sizes, one tilted, held above a floor (a
+// box resting on it would meet the floor along a contact curve no boundary term samples), under
+// an area light whose shadows fall on the floor: silhouettes, creases and shadow borders all move
+// on the film when the camera does.
+v1::Scene calibrate() {
+  SceneMaker m;
+  m.s.set_name("calibrate");
+  m.diffuse("floor", 0.6, 0.6, 0.6);
+  m.diffuse("red", 0.7, 0.22, 0.18);
+  m.diffuse("blue", 0.2, 0.35, 0.72);
+  m.diffuse("yellow", 0.78, 0.66, 0.25);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  auto* tall = m.shape("tall", "red");
+  tall->mutable_box();
+  SceneMaker::place(tall, {0.15, 0.35, 0.15}, {0, 25, 0}, {-0.55, 0.45, -0.35});
+  auto* slab = m.shape("slab", "blue");
+  slab->mutable_box();
+  SceneMaker::place(slab, {0.3, 0.08, 0.2}, {0, -30, 0}, {0.45, 0.2, 0.05});
+  auto* cube = m.shape("cube", "yellow");
+  cube->mutable_box();
+  SceneMaker::place(cube, {0.13, 0.13, 0.13}, {30, 40, 10}, {-0.05, 0.36, 0.5});
+  m.quad("lamp", "emitter", {0.3, 0.3, 1}, kFaceDown, {0.9, 2.4, 0.9});
+  m.areaLight("lamp", "lamp", 30, 28, 25);
+  m.view("photo", {0.3, 1.5, 2.6}, {0, 0.3, 0}, 40);
+  m.film(128, 96);
+  return m.s;
+}
+
 // Wang et al. 2023, Fig. 13: a faceted solid (an octagonal prism, tilted) in a room, lit by 16
 // spotlights around it (the paper: 17), each aimed at it so that its shadow falls on the far wall
 // or floor (with 8, the shadows leave the solid's recovered shape 1.1 % of its diagonal off). The
@@ -659,6 +689,7 @@ const std::vector<ZooDef>& zoo() {
       {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},
       {{"roulette", "closed room lit indirectly, 8 bounces; Russian-roulette survival per bounce"}, roulette},
       {{"pose", "a box under an area light; its translation and rotation from one image (shape parameters)"}, pose},
+      {{"calibrate", "three boxes above a floor under an area light; the camera's translation and rotation from one image (camera parameters)"}, calibrate},
       {{"octagon", "a faceted solid under 16 spotlights, seen only through its shadows on the walls (16 views); its mesh from a sphere"}, octagon},
       {{"relief", "a relief on a wall under a large light seen through a window frame (6 views); its mesh from a plane"}, relief},
       {{"oxalis-hd", "paper scale: a 68K-triangle plant's shadow on a painting, 256x256 texture (196K values), 512x512"}, oxalisHd},

@@ -27,6 +27,9 @@ struct FdReference {
   RenderOptions options;  // spp and seed are set per render
   int lossSpp = 512;
   int fdSeeds = 4;  // independent central differences averaged per component
+  // Per component, the central difference's half step; empty: 2 % of |theta_k| (at least 0.001).
+  // Parameters whose truth is 0 (poses) start elsewhere and take a step of their own scale.
+  std::vector<float> steps;
 
   // Registers the parameters, renders the target at the truth, and sets theta = 0.8 truth.
   FdReference(const char* sceneJson, std::initializer_list<const char*> params, RenderOptions o = {}, int lossSamples = 512)
@@ -63,10 +66,12 @@ struct FdReference {
   const MeanSE& finiteDifference(size_t k) {
     auto it = cache.find(k);
     if (it != cache.end()) return it->second;
-    const float h = 0.02f * std::max(0.05f, std::abs(theta[k]));
-    char key[128];
+    const float h = k < steps.size() ? steps[k] : 0.02f * std::max(0.05f, std::abs(theta[k]));
+    std::string where = id;  // theta is part of the key too
+    for (float v : theta) where += " " + std::to_string(v);
+    char key[160];
     std::snprintf(key, sizeof key, "fd_reference k=%zu h=%a seeds=%d spp=%d|%016llx", k, double(h), fdSeeds, lossSpp,
-                  (unsigned long long)detail::fnv1a(id));
+                  (unsigned long long)detail::fnv1a(where));
     return cache[k] = sharedMeanSE(key, [&] {
       reg.write(theta, *scene);
       MeanSE fd;

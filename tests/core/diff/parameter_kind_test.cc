@@ -116,7 +116,7 @@ TEST(ParameterKind, UnknownNamesListTheRegisteredKinds) {
     }
     return std::string("accepted");
   };
-  const std::string group = message("cameras/front/fov");
+  const std::string group = message("films/front/size");
   for (const ParameterKind* k : parameterKinds())
     for (const std::string& g : k->groups()) EXPECT_NE(group.find(g), std::string::npos) << group;
   const std::string property = message("lights/" + p.scene->lights[0].name + "/colour");

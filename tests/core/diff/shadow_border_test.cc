@@ -48,7 +48,7 @@ TEST(ShadowBorder, PointsAndSidesAreOnTheBorderTheRendererDraws) {
   for (const ShadowEdge& se : edges)
     for (int i = 0; i < 64; ++i) {
       ShadowBorderPoint bp;
-      if (!shadowBorderPoint(*scene, reg, cam, ShadowSource::at(scene->lights[0].position), se, (float(i) + 0.5f) / 64.f, bp, rays)) continue;
+      if (!shadowBorderPoint(*scene, reg, 0, ShadowSource::at(scene->lights[0].position), se, (float(i) + 0.5f) / 64.f, bp, rays)) continue;
       ++points;
       // Both sides lie on the receiver's triangle's plane, on that triangle's surface record.
       for (const SurfaceHit& side : bp.side) {

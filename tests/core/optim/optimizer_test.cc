@@ -98,7 +98,8 @@ TEST(Parameters, NamesResolveOrFailClearly) {
   EXPECT_NE(err("materials/m/shininess").find("unknown material property"), std::string::npos);
   EXPECT_NE(err("lights/l/intensity").find("listed twice"), std::string::npos);
   EXPECT_NE(err("lights/zz/intensity").find("no light named"), std::string::npos);
-  EXPECT_NE(err("cameras/a/fov").find("unknown parameter group"), std::string::npos);
+  EXPECT_NE(err("films/a/size").find("unknown parameter group"), std::string::npos);
+  EXPECT_NE(err("cameras/0/fov").find("unknown camera property"), std::string::npos);
   ParameterOptions inverted;
   inverted.lower = 1.f;
   inverted.upper = 0.f;
