@@ -1,15 +1,19 @@
 // Benchmarks of the gradient estimators (Wang et al. 2023): equal-time gradient error, ReSTIR's
 // overhead at equal samples, and equal-time reconstruction. Each prints a table or --json.
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <limits>
+#include <map>
 #include <memory>
 
 #include "client/lab/bench.h"
 #include "client/lab/lab_commands.h"
 #include "client/common/job_argument.h"
+#include "core/diff/edge_reservoir_boundary.h"
 #include "core/diff/pixel_sampler.h"
 #include "core/job/problem.h"
 #include "core/job/zoo_jobs.h"
@@ -98,7 +102,7 @@ BenchReport benchGradients(const GradientsArgs& a) {
   if (a.neighbours > 0) s.problem.gradient.restir.neighbours = a.neighbours;
   if (a.mCap > 0) s.problem.gradient.restir.mCap = float(a.mCap);
   if (a.radiusPixels > 0) s.problem.gradient.radiusPixels = float(a.radiusPixels);
-  if (a.edgeNeighbours >= 0) s.problem.gradient.boundary.edgeNeighbours = a.edgeNeighbours;
+  if (a.edgeNeighbours >= 0) s.problem.gradient.boundary.term<EdgeFirstAreaShadowOptions>().edgeNeighbours = a.edgeNeighbours;
   if (!a.sampler.empty()) s.problem.gradient.sampler = samplerKindFromName(a.sampler, "--sampler");
   const auto views = viewsForStep(s.problem, 0);
   // Reference: not the method under test's own chain but independent RIS evaluations at high spp
@@ -245,11 +249,12 @@ BenchReport benchGradients(const GradientsArgs& a) {
     o.boundary.secondary = false;
     row("without_secondary", o);
     o = full;
-    o.boundary.edgeImportance = false;
+    o.boundary.term<EdgeFirstAreaShadowOptions>().edgeImportance = false;
     const auto noImportance = row("without_edge_importance", o);
     o = full;
-    o.boundary.edgeNeighbours = full.boundary.edgeNeighbours > 0 ? 0 : 1;
-    row(full.boundary.edgeNeighbours > 0 ? "without_edge_neighbours" : "with_one_edge_neighbour", o);
+    const int neighbours = full.boundary.termOr<EdgeFirstAreaShadowOptions>().edgeNeighbours;
+    o.boundary.term<EdgeFirstAreaShadowOptions>().edgeNeighbours = neighbours > 0 ? 0 : 1;
+    row(neighbours > 0 ? "without_edge_neighbours" : "with_one_edge_neighbour", o);
     o = optionsFor(s.problem, GradientMethod::Ris, 1);
     o.boundary.areaSampling = BoundaryOptions::AreaSampling::LightPoints;
     row("ris_light_points_1spp", o);
@@ -384,19 +389,53 @@ struct ReconstructArgs {
   int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
   int imageErrorSpp = 16;            // the image-error meter's samples per pixel (reference and measurements)
   std::vector<std::string> methods{"pt", "ris", "restir"};  // also: forward_only, derivative_only
+  // Wang et al. 2023's protocol (docs/evaluation.md): fixed iterations, per-method samples, the
+  // burn-in, and the primal and derivative from one sample.
+  int steps = 0;                  // > 0: this many steps per run instead of --seconds
+  std::vector<std::string> spp;   // METHOD=N: that variant's spp_primal and spp_gradient
+  int burnIn = -1;                // ReSTIR's render-only steps; -1: the job's
+  bool correlatedPrimal = false;  // the derivative pass draws the primal pass's random numbers
+  std::vector<double> lrSweep;    // factors of every parameter's learning rate, each run per variant
+  bool targetFloor = false;       // also run each variant from the truth: the targets' own floor
+  int targetSpp = 256;
   bool json = false;
 };
 
+// "pt=4" -> ("pt", 4); the variant must be one compared.
+std::map<std::string, int> sppPerVariant(const std::vector<std::string>& specs, const std::vector<std::string>& variants) {
+  std::map<std::string, int> out;
+  for (const std::string& spec : specs) {
+    const size_t eq = spec.find('=');
+    const std::string name = spec.substr(0, eq);
+    int n = 0;
+    try {
+      n = eq == std::string::npos ? 0 : std::stoi(spec.substr(eq + 1));
+    } catch (const std::exception&) {
+      n = 0;
+    }
+    if (n < 1 || n > 4096) throw InputError("--spp '" + spec + "': give METHOD=N with N in 1..4096");
+    if (std::find(variants.begin(), variants.end(), name) == variants.end())
+      throw InputError("--spp '" + spec + "': '" + name + "' is not among the variants compared");
+    out[name] = n;
+  }
+  return out;
+}
+
 void runBenchReconstruct(const ReconstructArgs& a) {
-  if (!(a.seconds > 0)) throw InputError("--seconds must be positive");
+  if (a.steps < 0) throw InputError("--steps must be positive");
+  if (a.steps == 0 && !(a.seconds > 0)) throw InputError("--seconds must be positive");
+  for (double f : a.lrSweep)
+    if (!(f > 0) || !std::isfinite(f)) throw InputError("--lr-sweep: every factor must be a positive number");
+  if (a.targetSpp < 1) throw InputError("--target-spp must be positive");
   auto job = benchJob(a.scene, a.params);
-  job.mutable_optimization()->set_target_spp(256);
+  job.mutable_optimization()->set_target_spp(a.targetSpp);
   applySets(job, a.sets);
   if (!a.loss.empty()) job.mutable_optimization()->set_loss(a.loss);
   if (!a.optimizer.empty()) job.mutable_optimization()->set_optimizer(a.optimizer);
   if (a.learningRate > 0)
     for (auto& p : *job.mutable_optimization()->mutable_parameters()) p.set_learning_rate(a.learningRate);
   Setup s{buildProblem(job), {}};
+  if (a.burnIn >= 0) s.problem.burnIn = a.burnIn;
   s.targets = renderTargets(s.problem);
   ConvergenceCsv csv(a.csv);
   try {
@@ -407,7 +446,11 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   ImageErrorMeter meter(s.problem, 1, a.imageErrorSpp);
   BenchReport rep("reconstruct");
   rep.text("scene", a.scene);
-  rep.number("seconds_per_method", a.seconds, "s");
+  if (a.steps > 0) rep.number("steps_per_method", a.steps, "steps (fixed iterations)");
+  else rep.number("seconds_per_method", a.seconds, "s");
+  rep.number("target_spp", a.targetSpp);
+  if (a.correlatedPrimal) rep.text("correlated_primal", "yes: the derivative pass draws the primal pass's random numbers (Alg. 4)");
+  if (a.burnIn >= 0) rep.number("burn_in", a.burnIn, "ReSTIR's render-only steps");
   // Variants: the three light-sampling methods, or (--pixel-samplers) the listed pixel samplers
   // with the job's own method.
   struct Variant {
@@ -439,6 +482,14 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       variants.push_back({name, o});
     }
   }
+  {
+    std::vector<std::string> names;
+    for (const Variant& v : variants) names.push_back(v.name);
+    for (const auto& [name, n] : sppPerVariant(a.spp, names))
+      for (Variant& v : variants)
+        if (v.name == name) v.options.sppPrimal = v.options.sppGradient = n;
+  }
+  for (Variant& v : variants) v.options.correlatedPrimal = a.correlatedPrimal;
   // Rotation components (shape and group rotations, degrees): their final error is reported in
   // degrees, the RMSE over those components.
   std::vector<uint32_t> rotation;
@@ -457,38 +508,87 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   };
   if (a.seeds < 1) throw InputError("--seeds must be at least 1");
   // Each method runs once per seed (the job's seed, then the next ones); the figures are medians.
-  std::vector<double> errors, tails, shapeErrors;
+  std::vector<double> errors, tails, shapeErrors, floors;
   BenchReport::Json methods = BenchReport::Json::object();
   // Meshes recovered vertex by vertex (from another start mesh: no parameter error) are judged by
   // their shape error, the chamfer distance to the truth over its bounding-box diagonal.
   const bool shapes = shapeError(s.problem, s.problem.initial) >= 0;
   const bool parameters = parameterError(s.problem, s.problem.initial) >= 0;
   const uint64_t firstSeed = s.problem.seed;
-  for (const Variant& v : variants) {
+  if (a.targetFloor && !parameters) throw InputError("--target-floor: the scene's job has no known parameter truth to start from");
+  // Learning-rate factors (--lr-sweep): each variant runs at each, and is judged at its best (the
+  // lowest median last-quarter error), so no method is judged at another's rate.
+  const std::vector<double> factors = a.lrSweep.empty() ? std::vector<double>{1.0} : a.lrSweep;
+  std::vector<float> baseRates;
+  for (const ParameterSlot& sl : s.problem.params.slots()) baseRates.push_back(sl.learningRate);
+  auto setRates = [&](double factor) {
+    for (size_t i = 0; i < baseRates.size(); ++i) s.problem.params.setLearningRate(i, float(double(baseRates[i]) * factor));
+  };
+  EqualTimeOptions budget;
+  budget.seconds = a.seconds;
+  budget.steps = a.steps;
+  struct SeedRuns {
     std::vector<double> finalErrors, finalDegrees, tailErrors, finalShape, tailShape;
+    int firstSteps = 0;
+    double firstImageError = 0;
+  };
+  const bool judgeShapes = shapes && !parameters;
+  auto runSeeds = [&](const Variant& v, const std::string& name) {
+    SeedRuns r;
     for (int k = 0; k < a.seeds; ++k) {
       s.problem.seed = firstSeed + uint64_t(k);
-      EqualTimeOptions budget;
-      budget.seconds = a.seconds;
-      const std::string label = a.seeds > 1 ? v.name + "_seed" + std::to_string(k) : v.name;
+      const std::string label = a.seeds > 1 ? name + "_seed" + std::to_string(k) : name;
       EqualTimeRun run = runEqualTime(s.problem, s.targets, v.options, budget, &meter,
                                       [&](const EqualTimePoint& pt) { csv.add(convergenceRow(label, pt)); });
       csv.write();
-      finalErrors.push_back(run.history.back().parameterError);
-      tailErrors.push_back(tailParameterError(run.history, a.seconds));  // where it settled
-      if (!rotation.empty()) finalDegrees.push_back(degreesOff(run.theta));
+      r.finalErrors.push_back(run.history.back().parameterError);
+      r.tailErrors.push_back(tailParameterError(run.history, budget));  // where it settled
+      if (!rotation.empty()) r.finalDegrees.push_back(degreesOff(run.theta));
       if (shapes) {
-        finalShape.push_back(run.history.back().shapeError);
-        tailShape.push_back(tailShapeError(run.history, a.seconds));
+        r.finalShape.push_back(run.history.back().shapeError);
+        r.tailShape.push_back(tailShapeError(run.history, budget));
         std::cerr << "[" << a.scene << "] " << label << ": " << run.history.back().step << " steps, shape error "
-                  << BenchReport::fmt(run.history.front().shapeError) << " -> " << BenchReport::fmt(finalShape.back()) << "\n";
+                  << BenchReport::fmt(run.history.front().shapeError) << " -> " << BenchReport::fmt(r.finalShape.back()) << "\n";
       }
       if (k == 0) {
-        rep.number("steps_" + v.name, run.history.back().step);
-        rep.number("image_error_" + v.name, run.history.back().imageError);
+        r.firstSteps = run.history.back().step;
+        r.firstImageError = run.history.back().imageError;
       }
       if (!run.failure.empty()) rep.text("failure_" + label, run.failure);
     }
+    s.problem.seed = firstSeed;
+    return r;
+  };
+  auto score = [&](const SeedRuns& r) { return median(judgeShapes ? r.tailShape : r.tailErrors); };
+  for (const Variant& v : variants) {
+    SeedRuns best;
+    double bestFactor = factors.front(), bestScore = std::numeric_limits<double>::infinity();
+    BenchReport::Json sweep = BenchReport::Json::object();
+    for (double factor : factors) {
+      setRates(factor);
+      const std::string name = a.lrSweep.empty() ? v.name : v.name + "_lr" + BenchReport::fmt(factor);
+      SeedRuns r = runSeeds(v, name);
+      const double sc = score(r);
+      sweep[BenchReport::fmt(factor)] = sc;
+      if (sc < bestScore || !std::isfinite(bestScore)) bestScore = sc, bestFactor = factor, best = std::move(r);
+    }
+    std::vector<double>& finalErrors = best.finalErrors;
+    std::vector<double>& finalDegrees = best.finalDegrees;
+    std::vector<double>& tailErrors = best.tailErrors;
+    std::vector<double>& finalShape = best.finalShape;
+    std::vector<double>& tailShape = best.tailShape;
+    rep.number("steps_" + v.name, best.firstSteps);
+    rep.number("image_error_" + v.name, best.firstImageError);
+    // The targets' own floor for this variant: the same runs started from the truth, at its rate.
+    double floor = -1;
+    if (a.targetFloor) {
+      setRates(bestFactor);
+      const std::vector<float> initial = s.problem.initial;
+      s.problem.initial = s.problem.truth;
+      floor = median(runSeeds(v, v.name + "_from_truth").tailErrors);
+      s.problem.initial = initial;
+    }
+    setRates(1.0);
     s.problem.seed = firstSeed;
     errors.push_back(median(finalErrors));
     BenchReport::Json m = BenchReport::Json::object();
@@ -510,9 +610,15 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       m["median_shape_error_tail"] = median(tailShape);
       m["shape_error_tail"] = tailShape;
     }
-    // The job's samples per pixel, --set included, whatever the variant.
+    // The variant's samples per pixel (the job's, --set and --spp included).
     m["spp_primal"] = v.options.sppPrimal;
     m["spp_gradient"] = v.options.sppGradient;
+    if (!a.lrSweep.empty()) {
+      m["learning_rate_factor"] = bestFactor;
+      m["lr_sweep"] = std::move(sweep);  // factor -> median last-quarter error
+    }
+    if (floor >= 0) m["floor_param_error"] = floor;
+    floors.push_back(floor);
     methods[v.name] = std::move(m);
   }
   rep.number("seeds", a.seeds);
@@ -555,6 +661,8 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   }
   perVariant("param_error", errors, "(RMSE of the parameters)");
   perVariant("param_error_tail", tails, "(median over seeds of the RMS parameter error over the last quarter of the budget)");
+  if (a.targetFloor)
+    perVariant("floor_param_error", floors, "(the same, started from the truth: what these targets and this method's noise leave at best)");
   for (const char* baseline : {"pt", "ris", "forward_only", "derivative_only"})
     if (indexOf(baseline) >= 0 && indexOf("restir") >= 0)
       rep.number(std::string("ratio_") + baseline + "_over_restir", errors[size_t(indexOf(baseline))] / errors[size_t(indexOf("restir"))],
@@ -735,6 +843,15 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   rc->add_option("--image-error-spp", ra->imageErrorSpp, "samples per pixel of the image error (its reference render and each measurement, off the clock)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  rc->add_option("--steps", ra->steps, "fixed iterations per run instead of --seconds (Wang et al. 2023's protocol; burn-in not counted)");
+  rc->add_option("--spp", ra->spp, "METHOD=N: that variant's samples per pixel in the primal and derivative passes, e.g. pt=8 (repeatable)");
+  rc->add_option("--burn-in", ra->burnIn, "ReSTIR's render-only steps before the first gradient (default: the job's)");
+  rc->add_flag("--correlated-primal", ra->correlatedPrimal,
+               "the derivative pass draws the primal pass's random numbers (Alg. 4: primal and derivative from one sample; biased for L2)");
+  rc->add_option("--lr-sweep", ra->lrSweep, "factors of every parameter's learning rate, e.g. 0.3,1,3: each variant runs at each and is judged at its best")
+      ->delimiter(',');
+  rc->add_flag("--target-floor", ra->targetFloor, "also run each variant from the truth (floor_param_error: the targets' and the method's own floor)");
+  rc->add_option("--target-spp", ra->targetSpp, "samples per pixel of the rendered targets")->capture_default_str();
   rc->add_flag("--json", ra->json, "print one JSON object");
   rc->callback([ra, &exitCode] { runBenchReconstruct(*ra); exitCode = 0; });
 

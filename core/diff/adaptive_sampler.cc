@@ -17,6 +17,7 @@
 #include <cmath>
 
 #include "core/diff/pixel_sampler.h"
+#include "core/error.h"
 
 namespace invr {
 
@@ -65,6 +66,13 @@ class AdaptivePixels final : public PixelSampler {
   std::vector<float> cellValues(const Stage1& s, const PixelSamplingOptions& o) const override { return adaptiveMap(s, o.levels); }
   std::string describe(const PixelSamplingOptions& o) const override {
     return "p_j ~ sqrt(E[(dL/dI_j)^2] sum_k E[(dI_j/dtheta_k)^2]) over " + std::to_string(o.levels) + " levels (Yan et al. 2025, Eq. 12, 16, 18)";
+  }
+  void parseOptions(const invr::v1::PixelSamplerSpecs& specs, int filmPixels, PixelSamplingOptions& o) const override {
+    const invr::v1::AdaptivePixelsSpec& a = specs.adaptive();
+    parseStage1SamplerSpec(a, "adaptive", o, filmPixels);
+    if (a.levels() < 0 || a.levels() > 8)
+      throw InputError("optimization.pixel_samplers.adaptive.levels: must be in 1..8 (got " + std::to_string(a.levels()) + ")");
+    if (a.levels() > 0) o.levels = a.levels();
   }
 };
 

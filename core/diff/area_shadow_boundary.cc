@@ -54,24 +54,36 @@ BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
 namespace {
 
 const RegisterBoundaryTerm kAreaLightPoints({
-    .name = "area_shadows_light_points",
+    .name = LightPointsAreaShadowOptions::kTerm,
     .order = 31,
-    .stream = kAreaShadowBoundaryStream,
+    .pinnedStream = kAreaShadowBoundaryStream,
     .applies =
         [](const Scene& scene, const GradientOptions& o) {
           return o.boundary.secondary && o.boundary.areaSampling == BoundaryOptions::AreaSampling::LightPoints && AreaShadowBoundary::applies(scene);
         },
     .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
-      return std::make_unique<AreaShadowBoundary>(s.scene, s.params, s.topology, s.options.boundary.lightPoints);
+      return std::make_unique<AreaShadowBoundary>(s.scene, s.params, s.topology,
+                                                  s.options.boundary.termOr<LightPointsAreaShadowOptions>().lightPointsOf(s.options.boundary));
     },
     .describe =
         [](const BoundaryPlanInput& in) {
-          return "boundary, secondary, area lights (Eq. 21-26): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
-                 " samples per view and step over the silhouette edges of " + std::to_string(in.options.boundary.lightPoints) +
+          const BoundaryOptions& b = in.options.boundary;
+          return "boundary, secondary, area lights (Eq. 21-26): " + std::to_string(b.samplesFor(LightPointsAreaShadowOptions::kTerm, in.scene.width, in.scene.height)) +
+                 " samples per view and step over the silhouette edges of " + std::to_string(b.termOr<LightPointsAreaShadowOptions>().lightPointsOf(b)) +
                  " light points per pass, jump evaluated directly";
         },
     .memoryBytes = {},
     .samples = {Discontinuity::AreaLightShadows},
+    .parse = [](const invr::v1::BoundarySpec& b) -> std::unique_ptr<BoundaryTermOptions> {
+      if (!b.terms().has_area_shadows_light_points()) return nullptr;
+      const invr::v1::LightPointsAreaShadowSpec& spec = b.terms().area_shadows_light_points();
+      auto o = std::make_unique<LightPointsAreaShadowOptions>();
+      parseSharedTermFields(spec, LightPointsAreaShadowOptions::kTerm, *o);
+      if (spec.light_points() < 0 || spec.light_points() > 4096)
+        throw InputError("optimization.boundary.terms.area_shadows_light_points.light_points: must be in 1..4096 (0: optimization.boundary.light_points)");
+      o->lightPoints = spec.light_points();
+      return o;
+    },
 });
 
 }  // namespace

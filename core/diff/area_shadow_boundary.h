@@ -19,7 +19,14 @@
 namespace invr {
 
 // Area-light shadow borders (light points first, or edge first: edge_reservoir_boundary.h).
-inline constexpr StreamId kAreaShadowBoundaryStream{14};
+inline constexpr StreamId kAreaShadowBoundaryStream{14};  // pinned: the stream its documented figures used (BoundaryTermKind::pinnedStream)
+
+// The light-points-first term's options (optimization.boundary.terms.area_shadows_light_points).
+struct LightPointsAreaShadowOptions : BoundaryTermOptionsOf<LightPointsAreaShadowOptions> {
+  static constexpr const char* kTerm = "area_shadows_light_points";
+  int lightPoints = 0;  // per pass; 0: BoundaryOptions::lightPoints
+  int lightPointsOf(const BoundaryOptions& b) const { return lightPoints > 0 ? lightPoints : b.lightPoints; }
+};
 
 class AreaShadowBoundary final : public BoundaryTerm {
  public:

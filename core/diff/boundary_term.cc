@@ -33,7 +33,6 @@ BoundaryOptions parseBoundaryOptions(const v1::BoundarySpec& b) {
   if (b.samples() < 0 || b.samples() > (1 << 24)) fail("samples", "must be in 1..16777216 (0: the default)");
   if (b.light_points() < 0 || b.light_points() > 4096)
     fail("light_points", "must be in 1..4096 (0: the default " + std::to_string(defaults.lightPoints) + ")");
-  if (b.edge_neighbours() < 0 || b.edge_neighbours() > 8) fail("edge_neighbours", "must be in 0..8 (0, the default: none)");
   o.samples = b.samples();
   o.lightPoints = b.light_points() > 0 ? b.light_points() : defaults.lightPoints;
   o.primary = b.has_primary() ? b.primary() : defaults.primary;
@@ -41,9 +40,10 @@ BoundaryOptions parseBoundaryOptions(const v1::BoundarySpec& b) {
   o.multiViewShortcut = b.multi_view_shortcut();
   o.areaSampling = b.area_sampling() == v1::AREA_SAMPLING_LIGHT_POINTS ? BoundaryOptions::AreaSampling::LightPoints
                                                                        : BoundaryOptions::AreaSampling::EdgeFirst;
-  o.edgeImportance = b.has_edge_importance() ? b.edge_importance() : defaults.edgeImportance;
-  o.edgeNeighbours = b.edge_neighbours();
   o.allowUnsampled = b.allow_unsampled_discontinuities();
+  // Each term reads its own message (and the shared fields that are its aliases).
+  for (const BoundaryTermKind* k : boundaryTermKinds())
+    if (std::unique_ptr<BoundaryTermOptions> own = k->parse(b)) o.terms.set(k->name, std::move(own));
   return o;
 }
 
@@ -62,11 +62,17 @@ std::deque<BoundaryTermKind>& storage() {  // stable addresses for the registry'
 
 RegisterBoundaryTerm::RegisterBoundaryTerm(BoundaryTermKind kind) {
   auto& kinds = registry();
-  for (const BoundaryTermKind* k : kinds)
+  if (!kind.parse) throw std::logic_error("boundary term '" + kind.name + "': it must parse its options");
+  if (kind.pinnedStream && kind.pinnedStream->value <= kLastEngineStream)
+    throw std::logic_error("boundary term '" + kind.name + "': its pinned stream is one of the engine's own");
+  for (const BoundaryTermKind* k : kinds) {
     if (k->name == kind.name || k->order == kind.order)
       throw std::logic_error("boundary term '" + kind.name + "': its name or order is taken by '" + k->name + "'");
-  // Terms of one discontinuity may share a stream (alternative samplings of it, never both in one
-  // job); `applies` keeps them apart.
+    // Terms of one discontinuity may share a stream (alternative samplings of it, never both in
+    // one job); `applies` keeps them apart.
+    if (k->stream() == kind.stream() && k->samples != kind.samples)
+      throw std::logic_error("boundary term '" + kind.name + "': its random stream is '" + k->name + "'s");
+  }
   kinds.push_back(&storage().emplace_back(std::move(kind)));
   std::sort(kinds.begin(), kinds.end(), [](const BoundaryTermKind* a, const BoundaryTermKind* b) { return a->order < b->order; });
 }
@@ -83,7 +89,7 @@ std::vector<const BoundaryTermKind*> boundaryTermsFor(const Scene& scene, const 
   std::vector<const BoundaryTermKind*> out;
   if (!params.hasVisibilityParameters()) return out;
   for (const BoundaryTermKind* k : registry())
-    if (k->applies(scene, options)) out.push_back(k);
+    if (options.boundary.enabled(k->name) && k->applies(scene, options)) out.push_back(k);
   return out;
 }
 

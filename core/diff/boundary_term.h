@@ -17,10 +17,12 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "core/diff/boundary_options.h"
 #include "core/diff/boundary_state.h"
 #include "core/diff/parameters.h"
 #include "core/geometry/edge_topology.h"
@@ -32,37 +34,57 @@
 
 namespace invr {
 
-// What a job sets of the boundary terms (optimization.boundary): used when shape parameters are
-// optimised. Defaults here are the job's defaults.
+// What a job sets of the boundary terms (optimization.boundary): used when shape or camera
+// parameters are optimised. Defaults here are the job's defaults. The fields here are the ones
+// every term shares; each term's own are in `terms` (boundary_options.h), parsed by the term.
 struct BoundaryOptions {
   bool primary = true;    // silhouette, crease and terminator edges of moving meshes seen by the camera
-  // The primary term's shadow-terminator candidates on smooth meshes (PrimaryBoundary::
-  // terminatorJumpBound). Always on in jobs; tests turn it off to measure the term's share.
-  bool terminators = true;
-  // The primary term's side offsets, in float roundings of the edge point on the film (PrimaryBoundary:
-  // the first offset and the smallest it shrinks to). Jobs keep these; tests vary them to measure
-  // the estimate's dependence on them.
-  double sideOffsetRoundings = 4.0, minSideOffsetRoundings = 0.25;
   bool secondary = true;  // shadow borders of point, spot, area and environment lights
   int samples = 0;        // edge samples per term, view and step; 0: a quarter of the film's pixels, at least 256
-  int lightPoints = 16;   // light points (area lights) and directions (environments) per pass whose shadow borders are sampled
+  // Light points (area lights, light points first) and directions (environments) per pass whose
+  // shadow borders are sampled; a term's own option may override it.
+  int lightPoints = 16;
   // ReSTIR: test the support of reused samples in the current geometry (the paper's multi-view
   // shortcut, §3.2), which is biased once geometry moves. Default: in the geometry each sample was
   // created in (unbiased; the reservoir store keeps the moving meshes' poses for that).
   bool multiViewShortcut = false;
   // Area lights' shadow borders: sampled edge point first with the light point by RIS (Alg. 6;
-  // restir reuses edge reservoirs across steps) or light points first.
+  // restir reuses edge reservoirs across steps) or light points first. Selects between two terms.
   enum class AreaSampling { EdgeFirst, LightPoints };
   AreaSampling areaSampling = AreaSampling::EdgeFirst;
-  bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
-  // restir: previous-step edge reservoirs merged per sample (Alg. 6). 0: they steer edge importance
-  // only; merging measured no gain (docs/shapes.md).
-  int edgeNeighbours = 0;
   // Accept moving shapes whose discontinuities no term samples (contact curves with other surfaces,
   // hard spot-light cones on them): the gradient is then biased, and the plan says so.
   bool allowUnsampled = false;
+  // Each term's own options (optimization.boundary.terms.<name>), by its registered name.
+  BoundaryTermOptionSlots terms;
+
   int samplesFor(int width, int height) const { return samples > 0 ? samples : std::max(256, width * height / 4); }
+  // A term's samples: its own option, else the shared ones above.
+  int samplesFor(const std::string& term, int width, int height) const {
+    const BoundaryTermOptions* o = terms.find(term);
+    return o && o->samples > 0 ? o->samples : samplesFor(width, height);
+  }
+  bool enabled(const std::string& term) const {
+    const BoundaryTermOptions* o = terms.find(term);
+    return !o || o->enabled;
+  }
+  // T's options (made with T's defaults on first use), for tests and ablations to change.
+  template <class T>
+  T& term() { return terms.get<T>(); }
+  // T's options as the job set them, or T's defaults.
+  template <class T>
+  const T& termOr() const { return terms.getOr<T>(); }
 };
+
+// The fields every term's message has (enabled, samples), into o; `term` names the message
+// (optimization.boundary.terms.<term>) in errors.
+template <class Spec>
+void parseSharedTermFields(const Spec& spec, const std::string& term, BoundaryTermOptions& o) {
+  if (spec.samples() < 0 || spec.samples() > (1 << 24))
+    throw InputError("optimization.boundary.terms." + term + ".samples: must be in 1..16777216 (0: optimization.boundary.samples)");
+  o.samples = spec.samples();
+  o.enabled = spec.has_enabled() ? spec.enabled() : true;
+}
 
 // Throws InputError naming the field (optimization.boundary.*) for a value out of range.
 BoundaryOptions parseBoundaryOptions(const invr::v1::BoundarySpec& spec);
@@ -144,7 +166,10 @@ enum class Discontinuity : uint8_t {
 struct BoundaryTermKind {
   std::string name;  // the key of its statistics (GradientStats.boundary)
   int order = 0;     // where it runs in a step
-  StreamId stream;   // its random numbers
+  // Its random numbers: StreamId::named(name) unless it pins the number its documented figures
+  // were measured with (the terms older than named streams do: docs/architecture.md).
+  std::optional<StreamId> pinnedStream;
+  StreamId stream() const { return pinnedStream ? *pinnedStream : StreamId::named(name); }
   // Whether it has work for this scene under these options (the options may select another term
   // for the same discontinuities).
   std::function<bool(const Scene&, const GradientOptions&)> applies;
@@ -155,10 +180,16 @@ struct BoundaryTermKind {
   std::function<double(const BoundaryPlanInput&)> memoryBytes;
   // The discontinuities it samples (alternatives for one kind may both declare it).
   std::vector<Discontinuity> samples;
+  // Its options from the job's optimization.boundary: its own message under `terms` (read with
+  // parseSharedTermFields for enabled and samples) and any shared field it reads; nullptr when the
+  // job set none. Throws InputError naming the field. Every term sets it.
+  std::function<std::unique_ptr<BoundaryTermOptions>(const invr::v1::BoundarySpec&)> parse;
 };
 
 // Registers a term kind; a file defines one of these at namespace scope. Throws std::logic_error
-// for a name or order already registered.
+// for a name or order already registered, for a stream another term has (unless both sample the
+// same discontinuities: alternatives never run in one job), or a pinned stream among the engine's
+// own small numbers.
 struct RegisterBoundaryTerm {
   explicit RegisterBoundaryTerm(BoundaryTermKind kind);
 };

@@ -30,21 +30,29 @@ BoundaryPassStats DeltaShadowBoundary::run(const BoundaryView& bv) {
 
 namespace {
 
+constexpr const char* kName = "delta_shadows";
+
 const RegisterBoundaryTerm kDeltaShadows({
-    .name = "delta_shadows",
+    .name = kName,
     .order = 20,
-    .stream = kDeltaShadowBoundaryStream,
+    .pinnedStream = kDeltaShadowBoundaryStream,
     .applies = [](const Scene& scene, const GradientOptions& o) { return o.boundary.secondary && DeltaShadowBoundary::applies(scene); },
     .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
       return std::make_unique<DeltaShadowBoundary>(s.scene, s.params, s.topology);
     },
     .describe =
         [](const BoundaryPlanInput& in) {
-          return "boundary, secondary, point/spot lights: " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
+          return "boundary, secondary, point/spot lights: " + std::to_string(in.options.boundary.samplesFor(kName, in.scene.width, in.scene.height)) +
                  " samples per view and step on occluder silhouette edges seen from each light, that light's jump evaluated directly";
         },
     .memoryBytes = {},
     .samples = {Discontinuity::DeltaLightShadows},
+    .parse = [](const invr::v1::BoundarySpec& b) -> std::unique_ptr<BoundaryTermOptions> {
+      if (!b.terms().has_delta_shadows()) return nullptr;
+      auto o = std::make_unique<BoundaryTermOptions>();
+      parseSharedTermFields(b.terms().delta_shadows(), kName, *o);
+      return o;
+    },
 });
 
 }  // namespace

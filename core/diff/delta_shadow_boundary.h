@@ -16,7 +16,7 @@
 
 namespace invr {
 
-inline constexpr StreamId kDeltaShadowBoundaryStream{13};
+inline constexpr StreamId kDeltaShadowBoundaryStream{13};  // pinned: the stream its documented figures used (BoundaryTermKind::pinnedStream)
 
 class DeltaShadowBoundary final : public BoundaryTerm {
  public:

@@ -409,15 +409,16 @@ EdgeSamplingSettings edgeSettings(const GradientOptions& o) {
   EdgeSamplingSettings es;
   es.candidates = o.method == GradientMethod::Pt ? 1 : o.restir.candidates;
   es.reuse = reuse;
-  es.edgeImportance = reuse && o.boundary.edgeImportance;
-  es.neighbours = o.boundary.edgeNeighbours;
+  const EdgeFirstAreaShadowOptions& own = o.boundary.termOr<EdgeFirstAreaShadowOptions>();
+  es.edgeImportance = reuse && own.edgeImportance;
+  es.neighbours = own.edgeNeighbours;
   return es;
 }
 
 const RegisterBoundaryTerm kEdgeFirst({
     .name = kEdgeFirstAreaShadowsName,
     .order = 30,
-    .stream = kAreaShadowBoundaryStream,
+    .pinnedStream = kAreaShadowBoundaryStream,
     .applies =
         [](const Scene& scene, const GradientOptions& o) {
           return o.boundary.secondary && o.boundary.areaSampling == BoundaryOptions::AreaSampling::EdgeFirst && EdgeReservoirBoundary::applies(scene);
@@ -427,17 +428,18 @@ const RegisterBoundaryTerm kEdgeFirst({
         [](const BoundaryPlanInput& in) {
           const GradientOptions& g = in.options;
           const BoundaryOptions& b = g.boundary;
-          const bool reuse = edgeSettings(g).reuse;
+          const EdgeSamplingSettings es = edgeSettings(g);
+          const bool reuse = es.reuse;
           const std::string light = g.method == GradientMethod::Pt ? std::string("one light sample")
                                                                    : "streaming RIS over " + std::to_string(g.restir.candidates) + " light samples";
           return "boundary, secondary, area lights (multi-directional, Eq. 21-26): " +
-                 std::to_string(b.samplesFor(in.scene.width, in.scene.height)) +
+                 std::to_string(b.samplesFor(kEdgeFirstAreaShadowsName, in.scene.width, in.scene.height)) +
                  " samples per view and step, an edge point first, then the light point by " + light +
                  (reuse ? std::string("; an edge reservoir kept per sample (Alg. 6; Alg. 8 keeps those no view of the batch sees)") +
-                              (b.edgeNeighbours > 0 ? ", each sample merging " + std::to_string(b.edgeNeighbours) +
+                              (es.neighbours > 0 ? ", each sample merging " + std::to_string(es.neighbours) +
                                                           " kd-tree neighbour(s) among the previous step's"
                                                     : std::string()) +
-                              (b.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
+                              (es.edgeImportance ? "; edges drawn by edge importance (Eq. 27)" : "; edges by length")
                         : std::string("; edges by length")) +
                  "; jump evaluated directly";
         },
@@ -446,10 +448,30 @@ const RegisterBoundaryTerm kEdgeFirst({
     .memoryBytes =
         [](const BoundaryPlanInput& in) {
           if (!edgeSettings(in.options).reuse) return 0.0;
-          return double(in.shardViews) * double(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) *
+          return double(in.shardViews) * double(in.options.boundary.samplesFor(kEdgeFirstAreaShadowsName, in.scene.width, in.scene.height)) *
                  double(sizeof(EdgeReservoir) + 24) * (in.options.preserveOccluded ? 2.0 + 1.0 : 2.0);
         },
     .samples = {Discontinuity::AreaLightShadows},
+    // The shared edge_importance and edge_neighbours are this term's, kept as job-wide aliases; its
+    // own message's fields override them.
+    .parse = [](const invr::v1::BoundarySpec& b) -> std::unique_ptr<BoundaryTermOptions> {
+      const bool own = b.terms().has_area_shadows_edge_first();
+      if (!own && !b.has_edge_importance() && b.edge_neighbours() == 0) return nullptr;
+      const invr::v1::EdgeFirstAreaShadowSpec& spec = b.terms().area_shadows_edge_first();
+      auto o = std::make_unique<EdgeFirstAreaShadowOptions>();
+      parseSharedTermFields(spec, kEdgeFirstAreaShadowsName, *o);
+      if (b.has_edge_importance()) o->edgeImportance = b.edge_importance();
+      if (spec.has_edge_importance()) o->edgeImportance = spec.edge_importance();
+      if (b.edge_neighbours() < 0 || b.edge_neighbours() > 8)
+        throw InputError("optimization.boundary.edge_neighbours: must be in 0..8 (0, the default: none)");
+      o->edgeNeighbours = b.edge_neighbours();
+      if (spec.has_edge_neighbours()) {
+        if (spec.edge_neighbours() < 0 || spec.edge_neighbours() > 8)
+          throw InputError("optimization.boundary.terms.area_shadows_edge_first.edge_neighbours: must be in 0..8 (0, the default: none)");
+        o->edgeNeighbours = spec.edge_neighbours();
+      }
+      return o;
+    },
 });
 
 }  // namespace

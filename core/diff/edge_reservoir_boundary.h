@@ -84,8 +84,19 @@ class EdgeReservoirBoundary {
   size_t candidateEdges_ = 0;  // edges with p_k > 0 before edge importance (reported per pass)
 };
 
-// What the edge-first term keeps between steps, in its slot of the session (boundary_state.h).
 inline constexpr const char* kEdgeFirstAreaShadowsName = "area_shadows_edge_first";
+
+// The edge-first term's options (optimization.boundary.terms.area_shadows_edge_first, with the
+// shared fields edge_importance and edge_neighbours as job-wide aliases).
+struct EdgeFirstAreaShadowOptions : BoundaryTermOptionsOf<EdgeFirstAreaShadowOptions> {
+  static constexpr const char* kTerm = kEdgeFirstAreaShadowsName;
+  bool edgeImportance = true;  // restir: edges sampled from the previous step's edge reservoirs (Eq. 27)
+  // restir: previous-step edge reservoirs merged per sample (Alg. 6). 0: they steer edge importance
+  // only; merging measured no gain (docs/shapes.md).
+  int edgeNeighbours = 0;
+};
+
+// What the edge-first term keeps between steps, in its slot of the session (boundary_state.h).
 struct EdgeReservoirState final : BoundaryTermState {
   EdgeReservoirSet edges;
 };

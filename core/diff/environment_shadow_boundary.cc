@@ -49,21 +49,33 @@ BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
 namespace {
 
 const RegisterBoundaryTerm kEnvironmentShadows({
-    .name = "environment_shadows",
+    .name = EnvironmentShadowOptions::kTerm,
     .order = 40,
-    .stream = kEnvironmentShadowBoundaryStream,
+    .pinnedStream = kEnvironmentShadowBoundaryStream,
     .applies = [](const Scene& scene, const GradientOptions& o) { return o.boundary.secondary && EnvironmentShadowBoundary::applies(scene); },
     .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
-      return std::make_unique<EnvironmentShadowBoundary>(s.scene, s.params, s.topology, s.options.boundary.lightPoints);
+      return std::make_unique<EnvironmentShadowBoundary>(s.scene, s.params, s.topology,
+                                                         s.options.boundary.termOr<EnvironmentShadowOptions>().directionsOf(s.options.boundary));
     },
     .describe =
         [](const BoundaryPlanInput& in) {
-          return "boundary, secondary, environment lights: " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
-                 " samples per view and step over the silhouette edges of " + std::to_string(in.options.boundary.lightPoints) +
+          const BoundaryOptions& b = in.options.boundary;
+          return "boundary, secondary, environment lights: " + std::to_string(b.samplesFor(EnvironmentShadowOptions::kTerm, in.scene.width, in.scene.height)) +
+                 " samples per view and step over the silhouette edges of " + std::to_string(b.termOr<EnvironmentShadowOptions>().directionsOf(b)) +
                  " directions per pass drawn by the environment's sampling, jump evaluated directly";
         },
     .memoryBytes = {},
     .samples = {Discontinuity::EnvironmentShadows},
+    .parse = [](const invr::v1::BoundarySpec& b) -> std::unique_ptr<BoundaryTermOptions> {
+      if (!b.terms().has_environment_shadows()) return nullptr;
+      const invr::v1::EnvironmentShadowBoundarySpec& spec = b.terms().environment_shadows();
+      auto o = std::make_unique<EnvironmentShadowOptions>();
+      parseSharedTermFields(spec, EnvironmentShadowOptions::kTerm, *o);
+      if (spec.directions() < 0 || spec.directions() > 4096)
+        throw InputError("optimization.boundary.terms.environment_shadows.directions: must be in 1..4096 (0: optimization.boundary.light_points)");
+      o->directions = spec.directions();
+      return o;
+    },
 });
 
 }  // namespace

@@ -15,7 +15,14 @@
 
 namespace invr {
 
-inline constexpr StreamId kEnvironmentShadowBoundaryStream{15};
+inline constexpr StreamId kEnvironmentShadowBoundaryStream{15};  // pinned: the stream its documented figures used (BoundaryTermKind::pinnedStream)
+
+// The term's options (optimization.boundary.terms.environment_shadows).
+struct EnvironmentShadowOptions : BoundaryTermOptionsOf<EnvironmentShadowOptions> {
+  static constexpr const char* kTerm = "environment_shadows";
+  int directions = 0;  // per pass; 0: BoundaryOptions::lightPoints
+  int directionsOf(const BoundaryOptions& b) const { return directions > 0 ? directions : b.lightPoints; }
+};
 
 class EnvironmentShadowBoundary final : public BoundaryTerm {
  public:

@@ -244,7 +244,7 @@ void GradientEngine::derivativePass(Step& s) {
       PassSpec spec;
       spec.kind = req.renderOnly ? PassKind::Primal : PassKind::Derivative;
       spec.view = view;
-      spec.stream = streamSeed(req.seed, kDerivativeStream);
+      spec.stream = streamSeed(req.seed, opt_.correlatedPrimal ? kPrimalStream : kDerivativeStream);
       spec.sampler = opt_.sampler;
       spec.step = req.step;
       spec.spp = opt_.sppGradient;
@@ -275,7 +275,6 @@ void GradientEngine::boundaryPasses(Step& s) {
   Stopwatch clock;
   const RayObserver::BoundaryPhase boundaryRays(scene_.rayObserver());  // `invr-lab bench step` counts these rays apart
   v1::GradientStats& st = s.out.stats;
-  const int samples = opt_.boundary.samplesFor(scene_.width, scene_.height);
   std::vector<std::unique_ptr<BoundaryTerm>> terms;
   for (const BoundaryTermKind* kind : boundaryTerms_)
     terms.push_back(kind->make({scene_, params_, topology_, opt_, s.session.boundary[kind->name], req.views, req.allSessionViews}));
@@ -288,7 +287,8 @@ void GradientEngine::boundaryPasses(Step& s) {
                                   s.restirDerivative);
     for (size_t t = 0; t < terms.size(); ++t) {
       Stopwatch termClock;
-      const BoundaryView bv{view, s.adjoints[k], *estimator, samples, streamSeed(req.seed, boundaryTerms_[t]->stream), req.step,
+      const BoundaryView bv{view, s.adjoints[k], *estimator, opt_.boundary.samplesFor(boundaryTerms_[t]->name, scene_.width, scene_.height),
+                            streamSeed(req.seed, boundaryTerms_[t]->stream()), req.step,
                             *scratch_, s.out.gradient, req.cancel, opt_.sampler};
       const BoundaryPassStats b = terms[t]->run(bv);
       totals[t].candidateEdges += b.candidateEdges;

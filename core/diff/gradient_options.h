@@ -29,6 +29,11 @@ struct GradientOptions {
   float radiusPixels = 3.f;
   bool forwardOnly = false;   // restir in the primal pass only
   bool derivativeOnly = false; // restir in the derivative pass only, RIS primal (a lab ablation: bench reconstruct)
+  // The derivative pass draws the primal pass's random numbers (Wang et al. 2023, Alg. 4: the
+  // primal image and the derivative from the same sample; bench reconstruct --correlated-primal).
+  // Its dL/dI then correlates with the derivative, which biases an L2 gradient by their covariance.
+  // A lab ablation: jobs keep the passes independent.
+  bool correlatedPrimal = false;
   bool preserveOccluded = true;  // keep reservoirs no view of the batch sees (Alg. 8)
   // Look for ReSTIR neighbours among last step's pixels first when last step rendered the view
   // (see ReSTIR's estimator); false always searches the kd-tree (tests and benchmarks of that path).

@@ -20,6 +20,9 @@ class LossGradPixels final : public PixelSampler {
   bool usesStage1() const override { return true; }
   std::vector<float> cellValues(const Stage1& s, const PixelSamplingOptions&) const override { return lossGradMap(s); }
   std::string describe(const PixelSamplingOptions&) const override { return "p_j ~ |dL/dI_j| (Su & Gkioulekas 2024)"; }
+  void parseOptions(const invr::v1::PixelSamplerSpecs& specs, int filmPixels, PixelSamplingOptions& o) const override {
+    parseStage1SamplerSpec(specs.loss_grad(), "loss_grad", o, filmPixels);
+  }
 };
 
 const RegisterPixelSampler kRegistered(20, std::make_unique<LossGradPixels>());

@@ -137,6 +137,8 @@ class ParameterRegistry {
   // over each hit vertex's ring of triangles would cost more than the rest of the sample).
   size_t adjointSize() const { return size_ + t_.normalAdjoints; }
   const std::vector<ParameterSlot>& slots() const { return slots_; }
+  // Sets one slot's learning rate (benchmarks sweep them; jobs set them through ParameterSpec).
+  void setLearningRate(size_t slot, float rate) { slots_.at(slot).learningRate = rate; }
   const ParameterSlot* find(const std::string& name) const;
   const ParameterTables& tables() const { return t_; }
 

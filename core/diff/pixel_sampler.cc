@@ -12,6 +12,11 @@ namespace invr {
 
 namespace {
 
+void checkPixelSamples(int samples, int filmPixels, const std::string& field) {
+  if (samples < 0 || samples > 16 * filmPixels)
+    throw InputError("optimization." + field + ": must be in 1.." + std::to_string(16 * filmPixels) + " (got " + std::to_string(samples) + ")");
+}
+
 class AllPixels final : public PixelSampler {
  public:
   const char* name() const override { return "all"; }
@@ -23,6 +28,10 @@ class UniformPixels final : public PixelSampler {
  public:
   const char* name() const override { return "uniform"; }
   std::string describe(const PixelSamplingOptions&) const override { return "p_j = 1 / P"; }
+  void parseOptions(const invr::v1::PixelSamplerSpecs& specs, int filmPixels, PixelSamplingOptions& o) const override {
+    checkPixelSamples(specs.uniform().samples(), filmPixels, "pixel_samplers.uniform.samples");
+    if (specs.uniform().samples() > 0) o.samplesPerView = specs.uniform().samples();
+  }
 };
 
 struct Registry {
@@ -73,16 +82,40 @@ PixelSamplingOptions parsePixelSamplingOptions(const invr::v1::OptimizationSpec&
   } catch (const InputError& e) {
     fail("pixel_sampler", e.what());
   }
-  if (o.pixel_samples() < 0 || o.pixel_samples() > 16 * filmPixels)
-    fail("pixel_samples", "must be in 1.." + std::to_string(16 * filmPixels) + " (got " + std::to_string(o.pixel_samples()) + ")");
+  checkPixelSamples(o.pixel_samples(), filmPixels, "pixel_samples");
   p.samplesPerView = o.pixel_samples();
   if (!(o.pixel_defensive() >= 0 && o.pixel_defensive() <= 1))
     fail("pixel_defensive", "must be in (0, 1]: every pixel needs a probability above zero");
   p.defensive = o.pixel_defensive() > 0 ? float(o.pixel_defensive()) : defaults.defensive;
   if (o.pixel_refresh() < 0 || o.pixel_refresh() > 100000) fail("pixel_refresh", "must be in 1..100000 (got " + std::to_string(o.pixel_refresh()) + ")");
   p.refreshEvery = o.pixel_refresh() > 0 ? o.pixel_refresh() : defaults.refreshEvery;
+  // Options of a sampler the job does not use would be silently ignored: refuse them.
+  const auto& specs = o.pixel_samplers();
+  std::vector<const google::protobuf::FieldDescriptor*> set;
+  specs.GetReflection()->ListFields(specs, &set);
+  for (const google::protobuf::FieldDescriptor* f : set)
+    if (f->name() != p.sampler->name())
+      fail("pixel_samplers." + f->name(), std::string("options of a sampler the job does not use (pixel_sampler is '") + p.sampler->name() + "')");
+  p.sampler->parseOptions(specs, filmPixels, p);
   return p;
 }
+
+template <class Spec>
+void parseStage1SamplerSpec(const Spec& spec, const std::string& field, PixelSamplingOptions& o, int filmPixels) {
+  const std::string at = "pixel_samplers." + field + ".";
+  auto fail = [&](const std::string& name, const std::string& why) { throw InputError("optimization." + at + name + ": " + why); };
+  checkPixelSamples(spec.samples(), filmPixels, at + "samples");
+  if (spec.samples() > 0) o.samplesPerView = spec.samples();
+  if (!(spec.defensive() >= 0 && spec.defensive() <= 1)) fail("defensive", "must be in (0, 1]: every pixel needs a probability above zero");
+  if (spec.defensive() > 0) o.defensive = float(spec.defensive());
+  if (spec.refresh() < 0 || spec.refresh() > 100000) fail("refresh", "must be in 1..100000 (got " + std::to_string(spec.refresh()) + ")");
+  if (spec.refresh() > 0) o.refreshEvery = spec.refresh();
+  if (spec.stage1_stride() < 0 || spec.stage1_stride() > 16) fail("stage1_stride", "must be in 1..16 (got " + std::to_string(spec.stage1_stride()) + ")");
+  if (spec.stage1_stride() > 0) o.stage1Stride = spec.stage1_stride();
+}
+
+template void parseStage1SamplerSpec(const invr::v1::LossGradPixelsSpec&, const std::string&, PixelSamplingOptions&, int);
+template void parseStage1SamplerSpec(const invr::v1::AdaptivePixelsSpec&, const std::string&, PixelSamplingOptions&, int);
 
 std::vector<float> upsampleEdgeAware(const Stage1& s, const std::vector<float>& cells) {
   const int W = s.width, H = s.height;

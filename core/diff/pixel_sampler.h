@@ -100,7 +100,18 @@ class PixelSampler {
   }
   // What the plan says it draws by (after "pixels: <name>").
   virtual std::string describe(const PixelSamplingOptions& o) const = 0;
+  // Reads the sampler's own message of optimization.pixel_samplers (present only when this is the
+  // job's sampler) into o, over the job-wide values already there. Throws InputError naming the
+  // field. Default: the sampler has no options of its own.
+  virtual void parseOptions(const invr::v1::PixelSamplerSpecs& specs, int filmPixels, PixelSamplingOptions& o) const {
+    (void)specs, (void)filmPixels, (void)o;
+  }
 };
+
+// The fields stage-1 samplers share (samples, defensive, refresh, stage1_stride) from their own
+// message `field` (the field's name under optimization.pixel_samplers), over o's job-wide values.
+template <class Spec>
+void parseStage1SamplerSpec(const Spec& spec, const std::string& field, PixelSamplingOptions& o, int filmPixels);
 
 // Registers a sampler; a file defines one at namespace scope. `order` places it in pixelSamplers().
 // Throws std::logic_error for a name already registered.

@@ -212,7 +212,7 @@ std::vector<PrimaryBoundary::Candidate> PrimaryBoundary::candidates(int view, si
 }
 
 PrimaryBoundary::PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
-                                 const BoundaryOptions& options)
+                                 const PrimaryBoundaryOptions& options)
     : scene_(scene),
       params_(params),
       topology_(topology),
@@ -327,12 +327,12 @@ void PrimaryBoundary::endStep(RayStats&, std::vector<std::pair<std::string, uint
 namespace {
 
 const RegisterBoundaryTerm kPrimary({
-    .name = "primary",
+    .name = PrimaryBoundaryOptions::kTerm,
     .order = 10,
-    .stream = kPrimaryBoundaryStream,
+    .pinnedStream = kPrimaryBoundaryStream,
     .applies = [](const Scene&, const GradientOptions& o) { return o.boundary.primary; },
     .make = [](const BoundaryStep& s) -> std::unique_ptr<BoundaryTerm> {
-      return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology, s.options.boundary);
+      return std::make_unique<PrimaryBoundary>(s.scene, s.params, s.topology, s.options.boundary.termOr<PrimaryBoundaryOptions>());
     },
     .describe =
         [](const BoundaryPlanInput& in) {
@@ -340,7 +340,7 @@ const RegisterBoundaryTerm kPrimary({
           if (in.params && !in.scene.cameras.empty()) {
             const std::vector<EdgeTopology> topology = buildBoundaryTopology(in.scene, *in.params);
             size_t hidden = 0, kinds[3] = {0, 0, 0};
-            const PrimaryBoundary term(in.scene, *in.params, topology, in.options.boundary);
+            const PrimaryBoundary term(in.scene, *in.params, topology, in.options.boundary.termOr<PrimaryBoundaryOptions>());
             for (const PrimaryBoundary::Candidate& c : term.candidates(0, &hidden)) ++kinds[int(c.kind)];
             using Kind = PrimaryBoundary::EdgeKind;
             counts = "; in the scene as given, view 0 has " + std::to_string(kinds[int(Kind::Silhouette)]) + " silhouette, " +
@@ -348,7 +348,7 @@ const RegisterBoundaryTerm kPrimary({
                      " terminator candidate edges (before clipping to the film), and " + std::to_string(hidden) +
                      " hidden creases and terminators left out";
           }
-          return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(in.scene.width, in.scene.height)) +
+          return "boundary, primary (Eq. 9-11): " + std::to_string(in.options.boundary.samplesFor(PrimaryBoundaryOptions::kTerm, in.scene.width, in.scene.height)) +
                  " edge samples per view and step on silhouette, crease and (smooth meshes) shadow-terminator edges of moving "
                  "meshes (of every mesh in a view whose camera moves), by clipped film length times a bound on the jump (creases between flat faces: |n0 - n1|; terminators: the "
                  "lit side's shading cosine), creases and terminators that a closed mesh seen from outside turns away from the eye "
@@ -359,6 +359,14 @@ const RegisterBoundaryTerm kPrimary({
         },
     .memoryBytes = {},
     .samples = {Discontinuity::MeshEdges},
+    .parse = [](const invr::v1::BoundarySpec& b) -> std::unique_ptr<BoundaryTermOptions> {
+      if (!b.terms().has_primary()) return nullptr;
+      const invr::v1::PrimaryBoundarySpec& spec = b.terms().primary();
+      auto o = std::make_unique<PrimaryBoundaryOptions>();
+      parseSharedTermFields(spec, PrimaryBoundaryOptions::kTerm, *o);
+      if (spec.has_terminators()) o->terminators = spec.terminators();
+      return o;
+    },
 });
 
 }  // namespace

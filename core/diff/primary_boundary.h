@@ -27,13 +27,24 @@
 
 namespace invr {
 
-inline constexpr StreamId kPrimaryBoundaryStream{12};
+inline constexpr StreamId kPrimaryBoundaryStream{12};  // pinned: the stream its documented figures used (BoundaryTermKind::pinnedStream)
+
+// The primary term's options (optimization.boundary.terms.primary).
+struct PrimaryBoundaryOptions : BoundaryTermOptionsOf<PrimaryBoundaryOptions> {
+  static constexpr const char* kTerm = "primary";
+  // Smooth meshes' shadow-terminator candidates (terminatorJumpBound); false is an ablation that
+  // measures their share.
+  bool terminators = true;
+  // The side offsets, in float roundings of the edge point on the film: the first offset and the
+  // smallest it shrinks to. Jobs keep these; tests vary them to measure the estimate's dependence.
+  double sideOffsetRoundings = 4.0, minSideOffsetRoundings = 0.25;
+};
 
 class PrimaryBoundary final : public BoundaryTerm {
  public:
   // topology[m] for every mesh the registry moves (others may be empty).
-  // options: terminators and the side offsets (BoundaryOptions; the rest is not read here).
-  PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology, const BoundaryOptions& options = {});
+  PrimaryBoundary(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
+                  const PrimaryBoundaryOptions& options = {});
 
   // Adds adjoint-weighted edge samples for one view into its gradient. `adjoint` is dLoss/dI per
   // pixel and channel (every pixel traced); both sides are traced with the view's estimator.

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "core/diff/area_shadow_boundary.h"
+#include "core/diff/environment_shadow_boundary.h"
 #include "core/restir/reservoir_store.h"
 
 namespace invr {
@@ -47,7 +49,9 @@ WorkerMemory estimateWorkerMemory(const Problem& p, unsigned threads) {
   // direction (ShadowEdge, 32 bytes, and its weight), and the film-space primary candidates.
   if (p.params.hasVisibilityParameters()) {
     double points = 0;
-    for (const Light& l : s.lights) points += l.kind == LightKind::Area || l.isInfinite() ? double(g.boundary.lightPoints) : l.isDelta() ? 1.0 : 0.0;
+    const double area = g.boundary.termOr<LightPointsAreaShadowOptions>().lightPointsOf(g.boundary);
+    const double directions = g.boundary.termOr<EnvironmentShadowOptions>().directionsOf(g.boundary);
+    for (const Light& l : s.lights) points += l.kind == LightKind::Area ? area : l.isInfinite() ? directions : l.isDelta() ? 1.0 : 0.0;
     w.boundary = tris * 1.5 * 20 + tris * 3 * 4 + tris * 1.5 * (points + 1) * 36;
     // What the boundary terms keep beyond that (edge reservoirs).
     const BoundaryPlanInput input{s, g, maxShard};

@@ -95,6 +95,8 @@ v1::JobPlan planJob(const v1::JobSpec& job, const Problem& p, unsigned workerThr
     const BoundaryPlanInput input{s, g, maxShardViews, &p.params};
     if (!b.primary) est.push_back("boundary, primary: off (ablation)");
     if (!b.secondary) est.push_back("boundary, secondary (shadow borders): off (ablation)");
+    for (const BoundaryTermKind* term : boundaryTermKinds())
+      if (!b.enabled(term->name)) est.push_back("boundary, " + term->name + ": off (boundary.terms." + term->name + ".enabled false: an ablation)");
     for (const BoundaryTermKind* term : boundaryTermsFor(s, p.params, g)) est.push_back(term->describe(input));
     const std::vector<std::string> unsampled = unsampledDiscontinuities(s, p.params);
     if (unsampled.empty())

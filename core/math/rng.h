@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "core/math/sobol.h"
 #include "core/math/vec.h"
@@ -19,11 +20,23 @@ inline constexpr uint64_t mix64(uint64_t z) {
 }
 
 // One purpose random numbers serve within a job (a pass, a boundary term, the targets, ...).
-// Each id is declared beside the code that draws from it; no two purposes share one.
+// The engine's own passes have small numbers, declared beside the code that draws from them;
+// registered family members (boundary terms) derive theirs from their registered name (named()),
+// and registration checks them unique. No two purposes share one.
 struct StreamId {
   uint64_t value;
   constexpr bool operator==(const StreamId&) const = default;
+  // FNV-1a of the name with the top bit set: never one of the engine's small numbers.
+  static constexpr StreamId named(std::string_view name) {
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (char c : name) h = (h ^ uint64_t(uint8_t(c))) * 0x100000001b3ull;
+    return {h | (1ull << 63)};
+  }
 };
+
+// The engine's own passes use the numbers 1 to this (gradient_engine.h, pixel_sampler.h,
+// problem.h, image_error.h); a test checks them unique.
+inline constexpr uint64_t kLastEngineStream = 11;
 
 // The seed of one stream of a job: (job seed, stream) hashed as a pair. Arithmetic such as
 // seed * 2 + pass would make seed s's third stream seed s + 1's first, so runs with neighbouring

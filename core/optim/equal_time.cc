@@ -21,7 +21,26 @@ double tailError(const std::vector<EqualTimePoint>& history, double budgetSecond
   return n ? std::sqrt(sum / double(n)) : history.back().*error;
 }
 
+// The same over the steps in the last quarter of a budget of `steps`.
+double tailErrorBySteps(const std::vector<EqualTimePoint>& history, int steps, double EqualTimePoint::*error) {
+  double sum = 0;
+  size_t n = 0;
+  for (const EqualTimePoint& pt : history) {
+    if (!(pt.*error >= 0)) return pt.*error;
+    if (pt.step > 0 && pt.step >= 0.75 * steps) sum += pt.*error * pt.*error, ++n;
+  }
+  return n ? std::sqrt(sum / double(n)) : history.back().*error;
+}
+
 }  // namespace
+
+double tailParameterError(const std::vector<EqualTimePoint>& history, const EqualTimeOptions& budget) {
+  return budget.steps > 0 ? tailErrorBySteps(history, budget.steps, &EqualTimePoint::parameterError) : tailParameterError(history, budget.seconds);
+}
+
+double tailShapeError(const std::vector<EqualTimePoint>& history, const EqualTimeOptions& budget) {
+  return budget.steps > 0 ? tailErrorBySteps(history, budget.steps, &EqualTimePoint::shapeError) : tailShapeError(history, budget.seconds);
+}
 
 double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
   return tailError(history, budgetSeconds, &EqualTimePoint::parameterError);
@@ -47,7 +66,8 @@ ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& p
 EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const GradientOptions& options,
                           const EqualTimeOptions& budget, ImageErrorMeter* meter,
                           const std::function<void(const EqualTimePoint&)>& onPoint) {
-  if (!(budget.seconds > 0)) throw InputError("equal-time run: the budget must be positive seconds");
+  if (budget.steps < 0) throw InputError("equal-time run: the budget in steps must be positive");
+  if (budget.steps == 0 && !(budget.seconds > 0)) throw InputError("equal-time run: the budget must be positive seconds");
   LocalEvaluator evaluate(p, targets, options);
   // The burn-in (ReSTIR's render-only steps) is part of the method's cost; the problem's own
   // burn-in length does not apply to other methods.
@@ -68,7 +88,9 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
   record(start);
   const int checkpoints = std::max(1, budget.imageErrorCheckpoints);
   int nextCheckpoint = 1;
-  while (loop.burningIn() || used < budget.seconds) {
+  // The fraction of the budget spent: steps taken, or seconds used.
+  auto spent = [&] { return budget.steps > 0 ? double(loop.state().step) / double(budget.steps) : used / budget.seconds; };
+  while (loop.burningIn() || spent() < 1.0) {
     std::optional<GradientResult> g;
     Stopwatch clock;
     try {
@@ -89,10 +111,10 @@ EqualTimeRun runEqualTime(Problem& p, const std::vector<Image>& targets, const G
     pt.stats = g->stats;
     pt.parameterError = p.groundTruthKnown() ? parameterError(p, out.theta) : std::numeric_limits<double>::quiet_NaN();
     pt.shapeError = shapeError(p, out.theta);  // like the image error, measured off the clock
-    bool last = used >= budget.seconds;
-    if (meter && (last || used >= budget.seconds * nextCheckpoint / checkpoints)) {
+    const double fraction = spent();
+    if (meter && (fraction >= 1.0 || fraction >= double(nextCheckpoint) / checkpoints)) {
       pt.imageError = meter->measure(out.theta);
-      while (used >= budget.seconds * nextCheckpoint / checkpoints) ++nextCheckpoint;
+      while (fraction >= double(nextCheckpoint) / checkpoints) ++nextCheckpoint;
     }
     record(pt);
   }

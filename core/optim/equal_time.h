@@ -17,6 +17,9 @@ namespace invr {
 
 struct EqualTimeOptions {
   double seconds = 60;
+  // > 0: the budget is this many gradient steps instead of `seconds` (fixed iteration counts, as
+  // Wang et al. 2023's Table 1); burn-in steps are not counted.
+  int steps = 0;
   int imageErrorCheckpoints = 8;  // evenly spaced in the budget, plus the start and the end
 };
 
@@ -49,9 +52,12 @@ ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& p
 double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds);
 // The same for the shape error (-1 for jobs without one).
 double tailShapeError(const std::vector<EqualTimePoint>& history, double budgetSeconds);
+// The same over the last quarter of a budget in steps or seconds (EqualTimeOptions::steps).
+double tailParameterError(const std::vector<EqualTimePoint>& history, const EqualTimeOptions& budget);
+double tailShapeError(const std::vector<EqualTimePoint>& history, const EqualTimeOptions& budget);
 
 // Optimises problem.initial with `options` (the problem's own gradient settings are ignored)
-// until the budget is spent. `meter` may be null (no image error). `onPoint` sees every point.
+// until the budget (seconds, or steps) is spent. `meter` may be null (no image error). `onPoint` sees every point.
 EqualTimeRun runEqualTime(Problem& problem, const std::vector<Image>& targets, const GradientOptions& options,
                           const EqualTimeOptions& budget, ImageErrorMeter* meter,
                           const std::function<void(const EqualTimePoint&)>& onPoint = {});

@@ -179,6 +179,28 @@ TEST(GradientEngine, DeterministicForAnyThreadCount) {
   }
 }
 
+// --correlated-primal (Alg. 4's single sample): under PT the derivative pass traces the primal
+// pass's paths, so its image is the primal render and the two-render loss mean((I1 - T)(I2 - T))
+// is the primal's mean((I1 - T)^2); independent passes differ.
+TEST(GradientEngine, CorrelatedPrimalTracesThePrimalsPaths) {
+  Fixture& f = fixture();
+  f.reg.write(f.theta, *f.scene);
+  for (bool correlated : {false, true}) {
+    GradientOptions o;
+    o.method = GradientMethod::Pt;
+    o.sppPrimal = o.sppGradient = 2;
+    o.correlatedPrimal = correlated;
+    GradientEngine engine(*f.scene, f.reg, {f.target}, o);
+    EngineSession s;
+    GradientRequest r;
+    r.views = {0};
+    r.seed = 5;
+    const GradientResult g = engine.evaluate(r, s);
+    if (correlated) EXPECT_NEAR(g.stats.loss(), g.stats.primal_loss(), 1e-6 * g.stats.primal_loss());
+    else EXPECT_GT(std::abs(g.stats.loss() - g.stats.primal_loss()), 1e-3 * g.stats.primal_loss());
+  }
+}
+
 TEST(GradientEngine, ReservoirsPersistAndCarryConfidence) {
   Fixture& f = fixture();
   for (bool pixelNeighbours : {true, false}) {

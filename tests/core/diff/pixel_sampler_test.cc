@@ -7,6 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <set>
+
+#include <google/protobuf/util/json_util.h>
 
 #include "core/diff/diff_scenes.h"
 #include "core/diff/gradient_engine.h"
@@ -113,6 +116,38 @@ class EveryPixelSampler : public testing::TestWithParam<std::string> {};
 TEST_P(EveryPixelSampler, IsUnbiased) { checkUnbiased(direct(), GradientMethod::Pt, pixelSampler(GetParam()), 4096, 96, {0, 4, 49, kSum}); }
 INSTANTIATE_TEST_SUITE_P(PixelSampling, EveryPixelSampler, testing::ValuesIn(miniBatchSamplers()),
                          [](const testing::TestParamInfo<std::string>& info) { return info.param; });
+// Each sampler reads its own message under optimization.pixel_samplers, by its name, over the
+// job-wide pixel_* values; a message with no sampler of its name could not exist.
+TEST(PixelSampling, EachSamplerReadsItsOwnOptions) {
+  std::set<std::string> fields, names;
+  const google::protobuf::Descriptor* d = invr::v1::PixelSamplerSpecs::descriptor();
+  for (int i = 0; i < d->field_count(); ++i) fields.insert(d->field(i)->name());
+  for (const PixelSampler* p : pixelSamplers()) names.insert(p->name());
+  for (const std::string& f : fields) EXPECT_TRUE(names.count(f)) << "pixel_samplers." << f << " names no sampler";
+  auto parse = [](const std::string& json) {
+    invr::v1::OptimizationSpec o;
+    EXPECT_TRUE(google::protobuf::util::JsonStringToMessage(json, &o).ok()) << json;
+    return parsePixelSamplingOptions(o, 64 * 64);
+  };
+  const PixelSamplingOptions shared = parse(R"({"pixel_sampler": "adaptive", "pixel_samples": 300, "pixel_defensive": 0.3, "pixel_refresh": 7})");
+  EXPECT_EQ(shared.samplesPerView, 300);
+  EXPECT_FLOAT_EQ(shared.defensive, 0.3f);
+  EXPECT_EQ(shared.refreshEvery, 7);
+  EXPECT_EQ(shared.levels, 4);
+  EXPECT_EQ(shared.stage1Stride, 2);
+  const PixelSamplingOptions own = parse(R"({"pixel_sampler": "adaptive", "pixel_samples": 300, "pixel_samplers": {"adaptive":
+      {"samples": 500, "defensive": 0.5, "refresh": 3, "stage1_stride": 4, "levels": 2}}})");
+  EXPECT_EQ(own.samplesPerView, 500);
+  EXPECT_FLOAT_EQ(own.defensive, 0.5f);
+  EXPECT_EQ(own.refreshEvery, 3);
+  EXPECT_EQ(own.stage1Stride, 4);
+  EXPECT_EQ(own.levels, 2);
+  const PixelSamplingOptions lossGrad = parse(R"({"pixel_sampler": "loss_grad", "pixel_samplers": {"loss_grad": {"stage1_stride": 1}}})");
+  EXPECT_EQ(lossGrad.stage1Stride, 1);
+  EXPECT_EQ(parse(R"({"pixel_sampler": "uniform", "pixel_samplers": {"uniform": {"samples": 64}}})").samplesPerView, 64);
+  EXPECT_THROW(parse(R"({"pixel_sampler": "loss_grad", "pixel_samplers": {"adaptive": {"levels": 2}}})"), InputError);
+}
+
 TEST(PixelSampling, AdaptiveWithRestirIsUnbiased) {
   checkUnbiased(direct(), GradientMethod::Restir, pixelSampler("adaptive"), 4096, 96, {0, 4, 49, kSum});
 }

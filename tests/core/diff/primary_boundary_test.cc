@@ -119,7 +119,7 @@ struct BallCandidates {
   explicit BallCandidates(const std::string& json, bool terminators = true) : scene(test::sceneFromJson(json.c_str())) {
     reg.add(*scene, "shapes/ball/translation");
     for (const TriangleMesh& m : scene->meshes) topology.push_back(EdgeTopology::build(m));
-    BoundaryOptions options;
+    PrimaryBoundaryOptions options;
     options.terminators = terminators;
     candidates = PrimaryBoundary(*scene, reg, topology, options).candidates(0);
   }

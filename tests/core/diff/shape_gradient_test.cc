@@ -293,10 +293,10 @@ TEST(ShapeGradient, AreaLightShadowBordersEverySampling) {
   expectMatches(runToPower(c, 0, fd, shapeOptions(GradientMethod::Ris), "ris, edge first"), "ris, edge first");
   expectMatches(runToPower(c, 0, fd, shapeOptions(GradientMethod::Restir), "restir, edge reservoirs", approach), "restir, edge reservoirs");
   GradientOptions noImportance = shapeOptions(GradientMethod::Restir);
-  noImportance.boundary.edgeImportance = false;
+  noImportance.boundary.term<EdgeFirstAreaShadowOptions>().edgeImportance = false;
   expectMatches(runToPower(c, 0, fd, noImportance, "restir, no edge importance", approach), "restir, no edge importance");
   GradientOptions merged = shapeOptions(GradientMethod::Restir);
-  merged.boundary.edgeNeighbours = 3;  // kd-tree neighbours merged, supports tested where they were made
+  merged.boundary.term<EdgeFirstAreaShadowOptions>().edgeNeighbours = 3;  // kd-tree neighbours merged, supports tested where they were made
   expectMatches(runToPower(c, 0, fd, merged, "restir, 3 edge neighbours", approach), "restir, 3 edge neighbours");
   GradientOptions forwardOnly = shapeOptions(GradientMethod::Restir);
   forwardOnly.forwardOnly = true;
@@ -322,7 +322,7 @@ TEST(ShapeGradient, AreaLightHiddenBehindABoard) {
   expectMatches(runToPower(c, 0, fd, shapeOptions(GradientMethod::Restir), "restir, edge reservoirs, hidden lamp", {0.02f, 0.f, 0.f}),
                 "restir, edge reservoirs, hidden lamp");
   GradientOptions merged = shapeOptions(GradientMethod::Restir);
-  merged.boundary.edgeNeighbours = 3;
+  merged.boundary.term<EdgeFirstAreaShadowOptions>().edgeNeighbours = 3;
   expectMatches(runToPower(c, 0, fd, merged, "restir, 3 edge neighbours, hidden lamp", {0.02f, 0.f, 0.f}), "restir, 3 edge neighbours, hidden lamp");
 }
 
@@ -341,7 +341,7 @@ TEST(ShapeGradient, MergedEdgeNeighboursAreCountedByTheirOwnSupport) {
   ShapeCase c(json, "shapes/card/translation", {0.06f, -0.04f, 0.05f});
   const MeanSE fd = validatedFd(c, 0, 0.01f, "box out of view, area light, x");
   GradientOptions merged = shapeOptions(GradientMethod::Restir);
-  merged.boundary.edgeNeighbours = 8;
+  merged.boundary.term<EdgeFirstAreaShadowOptions>().edgeNeighbours = 8;
   expectMatches(runToPower(c, 0, fd, merged, "restir, 8 edge neighbours", {0.02f, 0.f, 0.f}), "restir, 8 edge neighbours");
 }
 
@@ -552,7 +552,7 @@ TEST(ShapeGradient, EdgeReservoirsMadeBeforeARotation) {
   const MeanSE fd = validatedFd(c, 1, 0.25f, "box out of view, area light, swinging about y");
   GradientOptions o = shapeOptions(GradientMethod::Restir);
   o.boundary.samples = 2048;
-  o.boundary.edgeNeighbours = 8;
+  o.boundary.term<EdgeFirstAreaShadowOptions>().edgeNeighbours = 8;
   const Check r = runToPower(c, 1, fd, o, "restir, 8 edge neighbours made 5 and 10 degrees back", {0.f, 5.f, 0.f});
   expectMatches(r, "restir after a rotation");
   expectTermPower(r, "restir after a rotation");
@@ -783,15 +783,15 @@ TEST(ShapeGradientDeep, KnotPrimarySideOffsets) {
   today.boundary.samples = 16384;
   for (auto [start, floor] : {std::pair{250.0, 25.0}, std::pair{40.0, 2.5}, std::pair{16.0, 1.0}}) {  // 16: four times today's
     GradientOptions other = today;
-    other.boundary.sideOffsetRoundings = start;
-    other.boundary.minSideOffsetRoundings = floor;
+    other.boundary.term<PrimaryBoundaryOptions>().sideOffsetRoundings = start;
+    other.boundary.term<PrimaryBoundaryOptions>().minSideOffsetRoundings = floor;
     const MeanSE d = c.pairedDifference(0, other, today, sessions, {});
     std::printf("knot x, front fill: primary side offsets from %g down to %g roundings, minus today's (%g down to %g): %+.3e +- %.1e "
                 "(%d sessions)\n",
-                start, floor, today.boundary.sideOffsetRoundings, today.boundary.minSideOffsetRoundings, d.mean, d.se(), sessions);
+                start, floor, today.boundary.termOr<PrimaryBoundaryOptions>().sideOffsetRoundings, today.boundary.termOr<PrimaryBoundaryOptions>().minSideOffsetRoundings, d.mean, d.se(), sessions);
     // Converged: four times today's offsets move the estimate by under 0.1 % of the derivative
     // (1.7e-2), the difference's own noise allowed for. (The offsets of before moved it 0.7 %.)
-    if (start == 4 * today.boundary.sideOffsetRoundings) {
+    if (start == 4 * today.boundary.termOr<PrimaryBoundaryOptions>().sideOffsetRoundings) {
       EXPECT_LE(std::abs(d.mean), 1.7e-5 + kSigmas * d.se()) << "primary side offsets";
     }
   }
@@ -1118,7 +1118,7 @@ const char* kSideLitBallScene = R"({
 // power to see a 10 % error in the term.
 void expectTerminatorCarried(ShapeCase& c, const MeanSE& fd, const char* what) {
   GradientOptions without = shapeOptions(GradientMethod::Pt);
-  without.boundary.terminators = false;
+  without.boundary.term<PrimaryBoundaryOptions>().terminators = false;
   const Check w = run(c, 0, fd, without, 64, (std::string(what) + ", pt without the terminator").c_str());
   const double share = 1.0 - w.est.mean / fd.mean;
   std::printf("%s: the terminator carries %.1f %% of the derivative\n", what, 100 * share);

@@ -71,6 +71,36 @@ TEST(Problem, ShapeJobsSayWhatTheyCannotDo) {
   EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"area_sampling": "AREA_SAMPLING_LIGHT_POINTS",
                     "edge_importance": false, "edge_neighbours": 3, "allow_unsampled_discontinuities": true}})"), "");
   EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/nope/translation"}]})"), "no shape named 'nope'");
+  // Each term's own message, under its registered name.
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"terms": {"area_shadows_edge_first": {"edge_neighbours": 9}}}})"),
+                  "optimization.boundary.terms.area_shadows_edge_first.edge_neighbours: must be in 0..8");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"terms": {"primary": {"samples": -4}}}})"),
+                  "optimization.boundary.terms.primary.samples");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"terms": {"environment_shadows": {"directions": 5000}}}})"),
+                  "optimization.boundary.terms.environment_shadows.directions");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"terms": {"area_shadows_light_points": {"light_points": -1}}}})"),
+                  "optimization.boundary.terms.area_shadows_light_points.light_points");
+  EXPECT_MENTIONS(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"terms": {"silhouettes": {}}}})"), "silhouettes");
+  EXPECT_EQ(errorOf(R"({"parameters": [{"name": "shapes/tall_box/rotation"}], "boundary": {"allow_unsampled_discontinuities": true, "terms": {
+                    "primary": {"samples": 512, "terminators": false}, "delta_shadows": {"enabled": false},
+                    "area_shadows_edge_first": {"edge_importance": false, "edge_neighbours": 2}}}})"), "");
+}
+
+// Each pixel sampler's own options: named when wrong, refused for a sampler the job does not use.
+TEST(Problem, PixelSamplerOptionsNameTheirField) {
+  const std::string albedo = R"({"parameters": [{"name": "materials/red/albedo"}], )";
+  EXPECT_EQ(errorOf(albedo + R"("pixel_sampler": "adaptive", "pixel_samplers": {"adaptive": {"levels": 2, "stage1_stride": 4, "defensive": 0.5, "refresh": 5, "samples": 100}}})"), "");
+  EXPECT_MENTIONS(errorOf(albedo + R"("pixel_sampler": "adaptive", "pixel_samplers": {"adaptive": {"levels": 9}}})"),
+                  "optimization.pixel_samplers.adaptive.levels: must be in 1..8");
+  EXPECT_MENTIONS(errorOf(albedo + R"("pixel_sampler": "loss_grad", "pixel_samplers": {"loss_grad": {"defensive": 1.5}}})"),
+                  "optimization.pixel_samplers.loss_grad.defensive");
+  EXPECT_MENTIONS(errorOf(albedo + R"("pixel_sampler": "loss_grad", "pixel_samplers": {"loss_grad": {"stage1_stride": 17}}})"),
+                  "optimization.pixel_samplers.loss_grad.stage1_stride");
+  EXPECT_MENTIONS(errorOf(albedo + R"("pixel_sampler": "uniform", "pixel_samplers": {"uniform": {"samples": -3}}})"),
+                  "optimization.pixel_samplers.uniform.samples");
+  EXPECT_MENTIONS(errorOf(albedo + R"("pixel_sampler": "uniform", "pixel_samplers": {"adaptive": {"levels": 2}}})"),
+                  "optimization.pixel_samplers.adaptive: options of a sampler the job does not use (pixel_sampler is 'uniform')");
+  EXPECT_MENTIONS(errorOf(albedo + R"("pixel_samplers": {"uniform": {"samples": 10}}})"), "pixel_sampler is 'all'");
 }
 
 // Vertex parameters and Large Steps: each mistake names its field.

@@ -83,6 +83,31 @@ TEST(EqualTime, TailErrorIsTheRmsOverTheLastQuarterOfTheBudget) {
   EXPECT_DOUBLE_EQ(tailParameterError({point(0, 0, -1), point(1, 3.5, -1)}, 4.0), -1.0);
 }
 
+// A budget in steps (Wang et al.'s fixed iteration counts): exactly that many steps whatever the
+// seconds, ReSTIR's burn-in not counted, and the tail over the last quarter of the steps.
+TEST(EqualTime, ABudgetInStepsTakesThatManySteps) {
+  auto job = zooJob("cornell");
+  job.mutable_optimization()->set_target_spp(4);
+  Problem p = buildProblem(job);
+  p.burnIn = 2;
+  auto targets = renderTargets(p);
+  EqualTimeOptions budget;
+  budget.seconds = 1e-9;  // ignored
+  budget.steps = 4;
+  GradientOptions o = p.gradient;
+  o.method = GradientMethod::Restir;
+  EqualTimeRun run = runEqualTime(p, targets, o, budget, nullptr);
+  ASSERT_EQ(run.history.size(), 5u);
+  EXPECT_EQ(run.history.back().step, 4);
+  // The last quarter of 4 steps is steps 3 and 4 (errors 3 and 4): sqrt((9 + 16) / 2).
+  std::vector<EqualTimePoint> made(5);
+  const double errors[] = {10, 7, 5, 3, 4};
+  for (int i = 0; i < 5; ++i) made[size_t(i)].step = i, made[size_t(i)].parameterError = errors[i];
+  EXPECT_DOUBLE_EQ(tailParameterError(made, budget), std::sqrt(12.5));
+  budget.steps = 40;  // no step in its last quarter: the final value
+  EXPECT_DOUBLE_EQ(tailParameterError(made, budget), 4.0);
+}
+
 TEST(EqualTime, RejectsANonPositiveBudget) {
   auto job = zooJob("cornell");
   job.mutable_optimization()->set_target_spp(1);
