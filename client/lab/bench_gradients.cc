@@ -421,6 +421,71 @@ std::map<std::string, int> sppPerVariant(const std::vector<std::string>& specs, 
   return out;
 }
 
+// Texture texels by what lights them (Wang et al.'s oxalis regions): per albedo texel of an image
+// texture, whether a spot light reaches its centre (its cone, facing and an unblocked shadow ray),
+// found where the texture's uv maps onto the meshes that wear it. Texels no mesh shows are left
+// out (-1).
+struct TexelRegions {
+  std::vector<uint32_t> spotLit, others;  // parameter indices (every channel of a texel)
+};
+
+TexelRegions texelRegionsBySpots(const Problem& p) {
+  TexelRegions out;
+  const Scene& scene = *p.scene;
+  bool anySpot = false;
+  for (const Light& l : scene.lights) anySpot |= l.kind == LightKind::Spot;
+  if (!anySpot) return out;
+  for (const ParameterSlot& sl : p.params.slots()) {
+    if (std::string(sl.kind->name()) != "albedo" || sl.width <= 0 || sl.height <= 0 || sl.material < 0) continue;
+    std::vector<int> lit(size_t(sl.width) * size_t(sl.height), -1);
+    for (size_t m = 0; m < scene.meshes.size(); ++m) {
+      const TriangleMesh& mesh = scene.meshes[m];
+      if (scene.meshMaterial[m] != sl.material || mesh.uvs.empty()) continue;
+      for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1], i2 = mesh.indices[3 * t + 2];
+        const Vec2 a = mesh.uvs[i0], b = mesh.uvs[i1], c = mesh.uvs[i2];
+        const float det = (b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y);
+        if (!(std::abs(det) > 0.f)) continue;
+        for (int y = 0; y < sl.height; ++y)
+          for (int x = 0; x < sl.width; ++x) {
+            // The texel's centre in uv (texture.h: v = 0 at the bottom row).
+            const Vec2 uv((float(x) + 0.5f) / float(sl.width), 1.f - (float(y) + 0.5f) / float(sl.height));
+            const float w1 = ((uv.x - a.x) * (c.y - a.y) - (c.x - a.x) * (uv.y - a.y)) / det;
+            const float w2 = ((b.x - a.x) * (uv.y - a.y) - (uv.x - a.x) * (b.y - a.y)) / det;
+            if (w1 < 0.f || w2 < 0.f || w1 + w2 > 1.f) continue;
+            const Vec3 q = mesh.positions[i0] * (1.f - w1 - w2) + mesh.positions[i1] * w1 + mesh.positions[i2] * w2;
+            const Vec3 n = mesh.faceNormals[t];
+            int& mark = lit[size_t(y) * size_t(sl.width) + size_t(x)];
+            mark = std::max(mark, 0);
+            for (uint32_t li = 0; li < scene.lights.size(); ++li) {
+              const Light& l = scene.lights[li];
+              if (l.kind != LightKind::Spot) continue;
+              const LightSample ls = sampleLight(l, scene, q, Vec2(0.5f, 0.5f), li);
+              if (!(ls.radiance.x + ls.radiance.y + ls.radiance.z > 0.f) || dot(ls.wi, n) <= 0.f) continue;
+              Vec3 dir;
+              float tmax;
+              if (!scene.occludedSegment(Scene::shadowOrigin(q, n, ls.wi), l.position, dir, tmax)) mark = 1;
+            }
+          }
+      }
+    }
+    for (size_t k = 0; k < lit.size(); ++k)
+      for (int ch = 0; ch < sl.channels; ++ch) {
+        if (lit[k] < 0) continue;
+        (lit[k] ? out.spotLit : out.others).push_back(sl.offset + uint32_t(k) * uint32_t(sl.channels) + uint32_t(ch));
+      }
+  }
+  return out;
+}
+
+// The mean of theta - truth over `indices` (NaN when there are none).
+double meanSignedError(const Problem& p, const std::vector<float>& theta, const std::vector<uint32_t>& indices) {
+  if (indices.empty()) return std::numeric_limits<double>::quiet_NaN();
+  double sum = 0;
+  for (uint32_t k : indices) sum += double(theta[k]) - double(p.truth[k]);
+  return sum / double(indices.size());
+}
+
 void runBenchReconstruct(const ReconstructArgs& a) {
   if (a.steps < 0) throw InputError("--steps must be positive");
   if (a.steps == 0 && !(a.seconds > 0)) throw InputError("--seconds must be positive");
@@ -516,6 +581,11 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   const bool parameters = parameterError(s.problem, s.problem.initial) >= 0;
   const uint64_t firstSeed = s.problem.seed;
   if (a.targetFloor && !parameters) throw InputError("--target-floor: the scene's job has no known parameter truth to start from");
+  // Texture texels a spot light reaches and those it does not (oxalis: the spots' and the fill's).
+  const TexelRegions regions = parameters ? texelRegionsBySpots(s.problem) : TexelRegions{};
+  if (!regions.spotLit.empty())
+    rep.text("texel_regions", std::to_string(regions.spotLit.size()) + " texel values a spot light reaches, " + std::to_string(regions.others.size()) +
+                                  " none reaches (mean_signed_error_spot_lit, mean_signed_error_others per method)");
   // Learning-rate factors (--lr-sweep): each variant runs at each, and is judged at its best (the
   // lowest median last-quarter error), so no method is judged at another's rate.
   const std::vector<double> factors = a.lrSweep.empty() ? std::vector<double>{1.0} : a.lrSweep;
@@ -529,6 +599,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   budget.steps = a.steps;
   struct SeedRuns {
     std::vector<double> finalErrors, finalDegrees, tailErrors, finalShape, tailShape;
+    std::vector<double> signedSpotLit, signedOthers;  // mean signed texel error by region, per seed
     int firstSteps = 0;
     double firstImageError = 0;
   };
@@ -543,6 +614,10 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       csv.write();
       r.finalErrors.push_back(run.history.back().parameterError);
       r.tailErrors.push_back(tailParameterError(run.history, budget));  // where it settled
+      if (!regions.spotLit.empty()) {
+        r.signedSpotLit.push_back(meanSignedError(s.problem, run.theta, regions.spotLit));
+        r.signedOthers.push_back(meanSignedError(s.problem, run.theta, regions.others));
+      }
       if (!rotation.empty()) r.finalDegrees.push_back(degreesOff(run.theta));
       if (shapes) {
         r.finalShape.push_back(run.history.back().shapeError);
@@ -616,6 +691,10 @@ void runBenchReconstruct(const ReconstructArgs& a) {
     if (!a.lrSweep.empty()) {
       m["learning_rate_factor"] = bestFactor;
       m["lr_sweep"] = std::move(sweep);  // factor -> median last-quarter error
+    }
+    if (!best.signedSpotLit.empty()) {
+      m["mean_signed_error_spot_lit"] = median(best.signedSpotLit);
+      m["mean_signed_error_others"] = median(best.signedOthers);
     }
     if (floor >= 0) m["floor_param_error"] = floor;
     floors.push_back(floor);

@@ -11,23 +11,15 @@ namespace invr {
 
 namespace {
 
-double tailError(const std::vector<EqualTimePoint>& history, double budgetSeconds, double EqualTimePoint::*error) {
+// The RMS of `error` over the steps in the last quarter of a budget of `total` seconds, or steps
+// when `bySteps`.
+double tailError(const std::vector<EqualTimePoint>& history, double total, bool bySteps, double EqualTimePoint::*error) {
   double sum = 0;
   size_t n = 0;
   for (const EqualTimePoint& pt : history) {
     if (!(pt.*error >= 0)) return pt.*error;
-    if (pt.step > 0 && pt.seconds >= 0.75 * budgetSeconds) sum += pt.*error * pt.*error, ++n;
-  }
-  return n ? std::sqrt(sum / double(n)) : history.back().*error;
-}
-
-// The same over the steps in the last quarter of a budget of `steps`.
-double tailErrorBySteps(const std::vector<EqualTimePoint>& history, int steps, double EqualTimePoint::*error) {
-  double sum = 0;
-  size_t n = 0;
-  for (const EqualTimePoint& pt : history) {
-    if (!(pt.*error >= 0)) return pt.*error;
-    if (pt.step > 0 && pt.step >= 0.75 * steps) sum += pt.*error * pt.*error, ++n;
+    const double spent = bySteps ? double(pt.step) : pt.seconds;
+    if (pt.step > 0 && spent >= 0.75 * total) sum += pt.*error * pt.*error, ++n;
   }
   return n ? std::sqrt(sum / double(n)) : history.back().*error;
 }
@@ -35,19 +27,21 @@ double tailErrorBySteps(const std::vector<EqualTimePoint>& history, int steps, d
 }  // namespace
 
 double tailParameterError(const std::vector<EqualTimePoint>& history, const EqualTimeOptions& budget) {
-  return budget.steps > 0 ? tailErrorBySteps(history, budget.steps, &EqualTimePoint::parameterError) : tailParameterError(history, budget.seconds);
+  const bool bySteps = budget.steps > 0;
+  return tailError(history, bySteps ? double(budget.steps) : budget.seconds, bySteps, &EqualTimePoint::parameterError);
 }
 
 double tailShapeError(const std::vector<EqualTimePoint>& history, const EqualTimeOptions& budget) {
-  return budget.steps > 0 ? tailErrorBySteps(history, budget.steps, &EqualTimePoint::shapeError) : tailShapeError(history, budget.seconds);
+  const bool bySteps = budget.steps > 0;
+  return tailError(history, bySteps ? double(budget.steps) : budget.seconds, bySteps, &EqualTimePoint::shapeError);
 }
 
 double tailParameterError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
-  return tailError(history, budgetSeconds, &EqualTimePoint::parameterError);
+  return tailError(history, budgetSeconds, false, &EqualTimePoint::parameterError);
 }
 
 double tailShapeError(const std::vector<EqualTimePoint>& history, double budgetSeconds) {
-  return tailError(history, budgetSeconds, &EqualTimePoint::shapeError);
+  return tailError(history, budgetSeconds, false, &EqualTimePoint::shapeError);
 }
 
 ConvergenceRow convergenceRow(const std::string& method, const EqualTimePoint& pt) {
