@@ -513,7 +513,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
   rep.text("scene", a.scene);
   if (a.steps > 0) rep.number("steps_per_method", a.steps, "steps (fixed iterations)");
   else rep.number("seconds_per_method", a.seconds, "s");
-  rep.number("target_spp", a.targetSpp);
+  rep.number("target_spp", job.optimization().target_spp());  // --target-spp, or a --set of it
   if (a.correlatedPrimal) rep.text("correlated_primal", "yes: the derivative pass draws the primal pass's random numbers (Alg. 4)");
   if (a.burnIn >= 0) rep.number("burn_in", a.burnIn, "ReSTIR's render-only steps");
   // Variants: the three light-sampling methods, or (--pixel-samplers) the listed pixel samplers
