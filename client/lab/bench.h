@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "client/common/bench_report.h"
+#include "invr/v1/job.pb.h"
 
 namespace invr::cli {
 
@@ -67,5 +68,9 @@ struct VarianceBenchArgs {
 };
 std::vector<BenchReport> benchVariance(const VarianceBenchArgs& args);
 VarianceBenchArgs quickVarianceBenchArgs();  // the smoke-test settings of --quick
+
+// Smooth-shades the named shapes of the job's scene (vertex normals; the zoo flat-shades the meshes
+// that move), putting the scene inline. Throws InputError naming `flag` for a shape it lacks.
+void smoothShadeShapes(v1::JobSpec& job, const std::vector<std::string>& shapes, const std::string& flag);
 
 }  // namespace invr::cli

@@ -109,6 +109,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   addBenchStepCommand(*bench, exitCode);
   addBenchScaleCommand(*bench, exitCode);
   addBenchGradientVectorCommand(*bench, exitCode);
+  addBenchDerivativeImagesCommand(*bench, exitCode);
 }
 
 }  // namespace invr::cli

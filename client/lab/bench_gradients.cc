@@ -785,17 +785,7 @@ BenchReport benchVertexStep(const VertexStepArgs& a) {
   }
   if (a.smooth) {
     if (a.shape.empty()) throw InputError("--smooth needs --shape");
-    // The zoo scene inline, with the shape's vertex normals (the zoo flat-shades meshes that move).
-    v1::Scene scene = jobSceneSpec(zoo);
-    bool found = false;
-    for (auto& sh : *scene.mutable_shapes())
-      if (sh.name() == a.shape) {
-        sh.set_face_normals(false);
-        sh.set_smooth_normals(true);
-        found = true;
-      }
-    if (!found) throw InputError("--shape " + a.shape + ": no such shape in zoo scene " + a.scene);
-    *zoo.mutable_scene() = scene;
+    smoothShadeShapes(zoo, {a.shape}, "--shape");
   }
   for (const auto& ps : zoo.optimization().parameters())
     if (ps.name().size() > 9 && ps.name().compare(ps.name().size() - 9, 9, "/vertices") == 0) vertexSpec = &ps;

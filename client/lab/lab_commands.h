@@ -16,6 +16,7 @@ void addBenchSamplerCommand(CLI::App& bench, int& exitCode);  // bench sampler: 
 void addBenchStepCommand(CLI::App& bench, int& exitCode);     // bench step: a gradient step against its rays' Embree time
 void addBenchScaleCommand(CLI::App& bench, int& exitCode);    // bench scale: step time and memory against problem size
 void addBenchGradientVectorCommand(CLI::App& bench, int& exitCode);  // bench gradient-vector: a job's gradient with standard errors
+void addBenchDerivativeImagesCommand(CLI::App& bench, int& exitCode);  // bench derivative-images: Wang et al.'s Fig. 6 measure
 void addEvalCommand(CLI::App& app, int& exitCode);  // eval: the speed-against-accuracy suite
 
 }  // namespace invr::cli

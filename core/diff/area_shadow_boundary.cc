@@ -48,7 +48,7 @@ BoundaryPassStats AreaShadowBoundary::run(const BoundaryView& bv) {
       [&](uint32_t j, const SurfaceHit& at, Vec3 eye, RayStats& rays) {
         return pointSourceRadiance(scene_, at, eye, scene_.lights[points[j].light], points[j], rays);
       },
-      stream, step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
+      stream, step, bv.scratch, bv.gradient, bv.cancel, bv.sampler, bv.pixels);
 }
 
 namespace {

@@ -33,11 +33,14 @@ FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator
 }
 
 void runBoundarySamples(int samples, GradientScratchPool& scratchPool, std::vector<double>& gradient, const std::atomic<bool>* cancel,
-                        BoundaryPassStats& st, const std::function<void(int, SampleCounters&, PathGradient&)>& body) {
+                        BoundaryPassStats& st, const std::function<void(int, SampleCounters&, PathGradient&)>& body,
+                        PixelDerivativeSink* pixels) {
   if (samples <= 0) return;
   constexpr int kChunk = 64;
   const int chunks = (samples + kChunk - 1) / kChunk;
   std::vector<TileGradient> tiles(static_cast<size_t>(chunks));
+  // A derivative image: each chunk's (pixel, derivative) in sample order, added in chunk order.
+  std::vector<std::vector<std::pair<uint64_t, double>>> chunkPixels(pixels ? size_t(chunks) : 0);
   std::mutex mergeMutex;
   std::atomic<bool> cancelled{false};
   tbb::parallel_for(tbb::blocked_range<int>(0, chunks), [&](const tbb::blocked_range<int>& range) {
@@ -57,6 +60,11 @@ void runBoundarySamples(int samples, GradientScratchPool& scratchPool, std::vect
           grad.clear();
           continue;
         }
+        if (pixels) {
+          const double d = grad.sumOf(pixels->index);
+          INVR_INVARIANT(d == 0.0 || grad.pixel() < pixels->image.size(), "a boundary sample's derivative names no film pixel");
+          if (d != 0.0) chunkPixels[size_t(chunk)].emplace_back(grad.pixel(), d);
+        }
         scratch.commit(grad);
       }
       scratch.flush(tiles[size_t(chunk)]);
@@ -67,6 +75,8 @@ void runBoundarySamples(int samples, GradientScratchPool& scratchPool, std::vect
   });
   if (cancelled) throw EvaluationCancelled{};
   for (auto& t : tiles) t.reduceInto(gradient);
+  for (const auto& chunk : chunkPixels)
+    for (const auto& [pixel, d] : chunk) pixels->image[size_t(pixel)] += d;
   st.samples = uint64_t(samples);
 }
 

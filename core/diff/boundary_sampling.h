@@ -31,9 +31,12 @@ FilmCrossing radianceJump(const Scene& scene, const InteriorEstimator& estimator
                           const Sampler& sampler, SampleCounters& counters);
 
 // Runs samples 0 .. samples-1 in fixed chunks on the thread pool. body(i, counters, grad) adds
-// sample i's derivatives to grad; a sample with a non-finite entry is dropped and counted. Chunks
-// are reduced in order into `gradient`. Throws EvaluationCancelled when `cancel` is raised.
+// sample i's derivatives to grad, and sets the pixel whose dL/dI it read (grad.setPixel); a sample
+// with a non-finite entry is dropped and counted. Chunks are reduced in order into `gradient`, and
+// into `pixels` when a derivative image is asked for. Throws EvaluationCancelled when `cancel` is
+// raised.
 void runBoundarySamples(int samples, GradientScratchPool& scratch, std::vector<double>& gradient, const std::atomic<bool>* cancel,
-                        BoundaryPassStats& stats, const std::function<void(int, SampleCounters&, PathGradient&)>& body);
+                        BoundaryPassStats& stats, const std::function<void(int, SampleCounters&, PathGradient&)>& body,
+                        PixelDerivativeSink* pixels = nullptr);
 
 }  // namespace invr

@@ -24,6 +24,7 @@
 
 #include "core/diff/boundary_options.h"
 #include "core/diff/boundary_state.h"
+#include "core/diff/gradient_sink.h"
 #include "core/diff/parameters.h"
 #include "core/geometry/edge_topology.h"
 #include "core/image/image.h"
@@ -123,6 +124,9 @@ struct BoundaryView {
   std::vector<double>& gradient;
   const std::atomic<bool>* cancel = nullptr;
   SamplerKind sampler = SamplerKind::Independent;  // GradientOptions::sampler
+  // Set for a derivative image (GradientRequest::derivativeImage): each sample's entries of its
+  // parameter value also go to the pixel whose dL/dI weighed the sample (PathGradient::setPixel).
+  PixelDerivativeSink* pixels = nullptr;
 };
 
 class BoundaryTerm {

@@ -25,7 +25,7 @@ BoundaryPassStats DeltaShadowBoundary::run(const BoundaryView& bv) {
   return sampleShadowBorders(
       scene_, params_, topology_, bv.view, bv.adjoint, bv.samples, sources,
       [&](uint32_t j, const SurfaceHit& at, Vec3 eye, RayStats& rays) { return deltaSourceRadiance(scene_, at, eye, *lights[j], rays); }, bv.stream,
-      bv.step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
+      bv.step, bv.scratch, bv.gradient, bv.cancel, bv.sampler, bv.pixels);
 }
 
 namespace {

@@ -151,7 +151,8 @@ EdgeReservoirBoundary::EdgeReservoirBoundary(const Scene& scene, const Parameter
 
 BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int samples, uint64_t stream, uint64_t step,
                                              GradientScratchPool& scratchPool, std::vector<double>& gradient,
-                                             std::vector<EdgeReservoir>& created, const std::atomic<bool>* cancel) const {
+                                             std::vector<EdgeReservoir>& created, const std::atomic<bool>* cancel,
+                                             PixelDerivativeSink* pixels) const {
   BoundaryPassStats st;
   if (samples <= 0 || pickEdge_.size() == 0 || pickLight_.size() == 0) return st;
   st.candidateEdges = candidateEdges_;
@@ -328,11 +329,13 @@ BoundaryPassStats EdgeReservoirBoundary::run(int view, const Image& adjoint, int
     const Rgb plus = pointSourceRadiance(scene_, bp.side[1], cam.eye, l, lp, counters.rays);
     const Rgb diff = minus - plus;
     if (isBlack(diff)) return;
-    const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, W - 1), std::clamp(int(bp.x.y), 0, H - 1));
+    const int px = std::clamp(int(bp.x.x), 0, W - 1), py = std::clamp(int(bp.x.y), 0, H - 1);
+    const Rgb adj = adjoint.rgb(px, py);
+    grad.setPixel(uint64_t(py) * uint64_t(W) + uint64_t(px));
     const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) * double(res.W) /
                      (double(pickEdge_.pmf(k)) * double(samples));
     if (w != 0.0) addShadowBorderGradient(scene_, params_, view, se, bp, w, grad);
-  });
+  }, pixels);
   return st;
 }
 
@@ -383,7 +386,7 @@ class EdgeFirstAreaShadows final : public BoundaryTerm {
         views_(s.views),
         keep_(settings.reuse), preserve_(settings.reuse && s.options.preserveOccluded && !s.allSessionViews) {}
   BoundaryPassStats run(const BoundaryView& v) override {
-    return sampler_.run(v.view, v.adjoint, v.samples, v.stream, v.step, v.scratch, v.gradient, created_, v.cancel);
+    return sampler_.run(v.view, v.adjoint, v.samples, v.stream, v.step, v.scratch, v.gradient, created_, v.cancel, v.pixels);
   }
   void endStep(RayStats& rays, std::vector<std::pair<std::string, uint64_t>>& counters) override {
     if (!keep_) return;

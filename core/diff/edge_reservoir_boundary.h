@@ -59,7 +59,8 @@ class EdgeReservoirBoundary {
 
   // One view's pass. Appends one reservoir per sample (in sample order) to `created`.
   BoundaryPassStats run(int view, const Image& adjoint, int samples, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
-                        std::vector<double>& gradient, std::vector<EdgeReservoir>& created, const std::atomic<bool>* cancel = nullptr) const;
+                        std::vector<double>& gradient, std::vector<EdgeReservoir>& created, const std::atomic<bool>* cancel = nullptr,
+                        PixelDerivativeSink* pixels = nullptr) const;
 
   // Alg. 8: appends to `next` the previous reservoirs whose p1 none of `views` sees, aged by one
   // (up to kMaxAge). Returns how many.

@@ -43,7 +43,7 @@ BoundaryPassStats EnvironmentShadowBoundary::run(const BoundaryView& bv) {
   return sampleShadowBorders(
       scene_, params_, topology_, view, bv.adjoint, samples, sources,
       [&](uint32_t j, const SurfaceHit& at, Vec3 eye, RayStats& rays) { return directionalSourceRadiance(scene_, at, eye, dirs[j], rays); }, stream,
-      step, bv.scratch, bv.gradient, bv.cancel, bv.sampler);
+      step, bv.scratch, bv.gradient, bv.cancel, bv.sampler, bv.pixels);
 }
 
 namespace {

@@ -7,6 +7,7 @@
 #include <algorithm>
 
 #include "core/diff/gradient_stats.h"
+#include "core/diff/parameter_kind.h"
 #include "core/diff/pass_driver.h"
 #include "core/diff/render_cost.h"
 #include "core/geometry/ray_observer.h"
@@ -100,15 +101,27 @@ GradientResult GradientEngine::evaluate(const GradientRequest& req, EngineSessio
   if (req.views.empty()) throw InputError("gradient request: no views");
   for (int v : req.views)
     if (v < 0 || size_t(v) >= scene_.cameras.size()) throw InputError("gradient request: view " + std::to_string(v) + " out of range");
-  if (!req.renderOnly)
+  if (req.derivativeImage) {
+    if (req.views.size() != 1 || req.renderOnly) throw InputError("derivative image: one view, and not a render-only step");
+    if (req.derivativeImage->index >= params_.size()) throw InputError("derivative image: parameter value out of range");
+    for (const ParameterSlot& slot : params_.slots())
+      if (req.derivativeImage->index >= slot.offset && req.derivativeImage->index < slot.offset + slot.size && slot.kind->isMesh())
+        throw InputError("derivative image: " + slot.name +
+                         " is a mesh's vertices (their normals' share is folded in after the passes); pick a material, light, pose or camera value");
+    if (req.derivativeWeights && (req.derivativeWeights->width() != scene_.width || req.derivativeWeights->height() != scene_.height ||
+                                  req.derivativeWeights->channels() != 3))
+      throw InputError("derivative image: the weights are not an RGB image of the film's size");
+    req.derivativeImage->image.assign(size_t(scene_.width) * size_t(scene_.height), 0.0);
+  } else if (!req.renderOnly) {
     for (int v : req.views)
       if (size_t(v) >= targets_.size() || targets_[size_t(v)].empty())
         throw InputError("gradient request: no target image for view " + std::to_string(v));
+  }
   Step s(req, session);
   s.out.gradient.assign(params_.adjointSize(), 0.0);
   s.pixels = size_t(scene_.width) * size_t(scene_.height);
   s.restir = opt_.method == GradientMethod::Restir;
-  s.restirPrimal = s.restir && !opt_.derivativeOnly;
+  s.restirPrimal = s.restir && !opt_.derivativeOnly && !req.derivativeImage;
   s.restirDerivative = s.restir && !opt_.forwardOnly;
   s.batchViews = req.batchViews > 0 ? req.batchViews : int(req.views.size());
   prepareReservoirs(s);
@@ -150,7 +163,7 @@ void GradientEngine::drawPixelBatches(Step& s) {
   // every `refreshEvery` steps and kept in the session.
   const PixelSamplingOptions& po = opt_.pixels;
   const GradientRequest& req = s.req;
-  if (po.sampler->miniBatch()) {
+  if (po.sampler->miniBatch() && !req.derivativeImage) {
     const int n = po.samplesFor(s.pixels);
     for (int v : req.views) {
       PixelMap& map = s.session.pixelMaps[v];
@@ -192,6 +205,16 @@ void GradientEngine::primalPass(Step& s) {
     s.newPrimal.resize(req.views.size() * s.pixels * size_t(opt_.sppPrimal));
   }
   s.adjoints.resize(req.views.size());
+  if (req.derivativeImage) {  // dL/dI = 1/3: the derivative of each pixel's channel mean
+    if (req.derivativeWeights) {
+      s.adjoints[0] = *req.derivativeWeights;
+      return;
+    }
+    s.adjoints[0] = Image(scene_.width, scene_.height, 3);
+    for (int y = 0; y < scene_.height; ++y)
+      for (int x = 0; x < scene_.width; ++x) s.adjoints[0].setRgb(x, y, Rgb(1.f / 3.f));
+    return;
+  }
   uint64_t traced = 0;
   for (size_t k = 0; k < req.views.size(); ++k) {
     s.checkCancel();
@@ -252,12 +275,13 @@ void GradientEngine::derivativePass(Step& s) {
       spec.adjoint = req.renderOnly ? nullptr : &s.adjoints[k];
       spec.reservoirs = s.restirDerivative ? s.newDerivative.data() + k * s.pixels * size_t(opt_.sppGradient) : nullptr;
       spec.cancel = req.cancel;
+      spec.pixels = req.derivativeImage;
       PassOutput pr = runPass(scene_, *estimator, spec, *scratch_, req.renderOnly ? nullptr : &s.out.gradient);
       s.count(pr);
       // The cost comes from this pass: it is independent of both the primal render (the variance's
       // I1) and the variance pass, so t * V and its derivative stay unbiased.
       if (opt_.variance.enabled) s.costs[k] = renderCostByDepth(pr.rays, scene_.sampling.survival);
-      if (!req.renderOnly)
+      if (!req.renderOnly && !req.derivativeImage)
         st.set_loss(st.loss() + unbiasedImageLoss(opt_.loss, s.out.renders[k], pr.image, targets_[size_t(view)], s.batchViews, s.weightsOf(k)));
     }
   }
@@ -289,7 +313,7 @@ void GradientEngine::boundaryPasses(Step& s) {
       Stopwatch termClock;
       const BoundaryView bv{view, s.adjoints[k], *estimator, opt_.boundary.samplesFor(boundaryTerms_[t]->name, scene_.width, scene_.height),
                             streamSeed(req.seed, boundaryTerms_[t]->stream()), req.step,
-                            *scratch_, s.out.gradient, req.cancel, opt_.sampler};
+                            *scratch_, s.out.gradient, req.cancel, opt_.sampler, req.derivativeImage};
       const BoundaryPassStats b = terms[t]->run(bv);
       totals[t].candidateEdges += b.candidateEdges;
       totals[t].samples += b.samples;
@@ -316,7 +340,7 @@ void GradientEngine::variancePass(Step& s) {
   // Variance pass (Yan et al. 2024): fresh paths, each paired with the primal render as the
   // independent estimate of its pixel's mean (Eq. 18).
   const GradientRequest& req = s.req;
-  if (!opt_.variance.enabled || req.renderOnly) return;
+  if (!opt_.variance.enabled || req.renderOnly || req.derivativeImage) return;
   Stopwatch clock;
   v1::GradientStats& st = s.out.stats;
   const bool timeAware = opt_.variance.cost == VarianceCost::Depth;

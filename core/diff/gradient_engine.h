@@ -48,6 +48,16 @@ struct GradientRequest {
   // Checked per 16x16 tile of every pass: when it becomes true, evaluate() throws
   // EvaluationCancelled.
   const std::atomic<bool>* cancel = nullptr;
+  // Set: a derivative image instead of a loss gradient (`invr-lab bench derivative-images`). The
+  // request holds one view; dL/dI is 1/3 in every pixel and channel, so the sink receives, per
+  // pixel, d(mean of the pixel's channels)/d theta_index from the derivative pass and every
+  // boundary term (the result's gradient holds their sums). No primal pass, no loss, no targets,
+  // every pixel (no mini-batch); ReSTIR advances the derivative pass's reservoir chain as a step
+  // does. The sink's image is (re)sized to the film and zeroed here.
+  PixelDerivativeSink* derivativeImage = nullptr;
+  // With derivativeImage: dL/dI per pixel and channel instead of 1/3 (the sink then holds each
+  // pixel's samples weighted by it; tests check that every sample lands where it is weighed).
+  const Image* derivativeWeights = nullptr;
 };
 
 

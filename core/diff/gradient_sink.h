@@ -16,7 +16,22 @@ namespace invr {
 class PathGradient {
  public:
   void add(uint32_t index, float value) { entries_.emplace_back(index, value); }
-  void clear() { entries_.clear(); }
+  void clear() {
+    entries_.clear();
+    pixel_ = kNoPixel;
+  }
+  // The film pixel whose dL/dI weighs this sample (boundary terms set it where they read the
+  // adjoint; a camera sample's pixel is the pass driver's): where a derivative image puts it.
+  static constexpr uint64_t kNoPixel = UINT64_MAX;
+  void setPixel(uint64_t pixel) { pixel_ = pixel; }
+  uint64_t pixel() const { return pixel_; }
+  // The sum of the entries of one parameter value.
+  double sumOf(uint32_t index) const {
+    double s = 0;
+    for (const auto& e : entries_)
+      if (e.first == index) s += double(e.second);
+    return s;
+  }
   size_t size() const { return entries_.size(); }
   void truncate(size_t n) { entries_.resize(std::min(n, entries_.size())); }
   // Whether the entries from index `from` on are all finite.
@@ -29,6 +44,15 @@ class PathGradient {
 
  private:
   std::vector<std::pair<uint32_t, float>> entries_;
+  uint64_t pixel_ = kNoPixel;
+};
+
+// A derivative image: d(mean of I's channels)/d theta_index per film pixel, for one parameter value
+// (GradientRequest::derivativeImage). The passes add each sample's entries of that value to the
+// pixel it belongs to, per tile or chunk, reduced in order (the same image for any thread count).
+struct PixelDerivativeSink {
+  uint32_t index = 0;         // the parameter value (ParameterRegistry order)
+  std::vector<double> image;  // width * height, row-major
 };
 
 // One tile's summed derivatives: (parameter index, sum) for each index its paths touched.

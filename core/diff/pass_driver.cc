@@ -171,7 +171,9 @@ PassOutput runPass(const Scene& scene, const InteriorEstimator& estimator, const
           if (kept > 0) res.image.setRgb(x, y, Rgb(float(acc[0] / kept), float(acc[1] / kept), float(acc[2] / kept)));
           if (kept > 0 && squares) res.secondMoment.setRgb(x, y, Rgb(float(acc2[0] / kept), float(acc2[1] / kept), float(acc2[2] / kept)));
           // The adjoint was split over all samples; the kept ones carry the whole pixel.
-          if (derivative) scratch->commit(pixelGrad, kept > 0 ? float(tp.samples) / float(kept) : 0.f);
+          const float carry = kept > 0 ? float(tp.samples) / float(kept) : 0.f;
+          if (derivative && spec.pixels) spec.pixels->image[size_t(tp.pixel)] += double(carry) * pixelGrad.sumOf(spec.pixels->index);
+          if (derivative) scratch->commit(pixelGrad, carry);
           INVR_INVARIANT(pixelGrad.size() == 0, "a pixel's derivatives outlived it");
           for (int s = 0; tp.slots && s < spp; ++s)
             INVR_INVARIANT(tp.slots[s].mesh == UINT32_MAX || tp.slots[s].mesh < scene.meshes.size(), "a reservoir slot holds no valid anchor");

@@ -38,6 +38,7 @@ struct PassSpec {
   bool squares = false;               // Primal: also the mean of the squared samples (secondMoment)
   StoredReservoir* reservoirs = nullptr;  // one slot per pixel sample (first draw), or null
   const std::atomic<bool>* cancel = nullptr;  // checked per 16x16 tile; raised: EvaluationCancelled
+  PixelDerivativeSink* pixels = nullptr;      // Derivative: also each pixel's derivative of one value (a derivative image)
 };
 
 struct PassOutput {

@@ -306,6 +306,7 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     const double eps = sideOffset(scene_, cam, e, xp, n, sideOffsetRoundings_ * precision, minSideOffsetRoundings_ * precision, counters);
     const FilmCrossing c = radianceJump(scene_, estimator, cam, xp, n, eps, sampler, counters);
     const Rgb adj = adjoint.rgb(c.px, c.py);
+    grad.setPixel(uint64_t(c.py) * uint64_t(W) + uint64_t(c.px));
     // 1 / pdf per unit film length: the sum of weights over the edge's jump bound.
     const float w = (adj.x * c.jump.x + adj.y * c.jump.y + adj.z * c.jump.z) * total / (jumpBounds[picked] * float(samples));
     if (w == 0.f) return;
@@ -315,7 +316,7 @@ BoundaryPassStats PrimaryBoundary::run(const BoundaryView& bv) {
     const Vec3 g = (dx * n.x + dy * n.y) * w;  // w * n . dfilm/dP
     params_.addEdgeGradient(scene_, e.mesh, e.v0, e.v1, tEdge, P, g, grad);
     params_.addCameraPointGradient(scene_, view, P, -g, grad);  // the camera moving moves P the other way on the film
-  });
+  }, bv.pixels);
   return st;
 }
 

@@ -150,7 +150,8 @@ void addShadowBorderGradient(const Scene& scene, const ParameterRegistry& params
 BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistry& params, const std::vector<EdgeTopology>& topology,
                                       int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
                                       const BorderSourceRadiance& radiance, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
-                                      std::vector<double>& gradient, const std::atomic<bool>* cancel, SamplerKind samplerKind) {
+                                      std::vector<double>& gradient, const std::atomic<bool>* cancel, SamplerKind samplerKind,
+                                      PixelDerivativeSink* pixels) {
   const Camera& cam = scene.cameras[size_t(view)];
   BoundaryPassStats st;
   std::vector<ShadowEdge> edges;
@@ -173,11 +174,13 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
     const Rgb plus = radiance(se.source, bp.side[1], cam.eye, counters.rays);
     const Rgb diff = minus - plus;
     if (isBlack(diff)) return;
-    const Rgb adj = adjoint.rgb(std::clamp(int(bp.x.x), 0, scene.width - 1), std::clamp(int(bp.x.y), 0, scene.height - 1));
+    const int px = std::clamp(int(bp.x.x), 0, scene.width - 1), py = std::clamp(int(bp.x.y), 0, scene.height - 1);
+    const Rgb adj = adjoint.rgb(px, py);
+    grad.setPixel(uint64_t(py) * uint64_t(scene.width) + uint64_t(px));
     // pdf of (source, edge, t): the edge's probability (t is uniform on [0, 1]).
     const double w = double(adj.x * diff.x + adj.y * diff.y + adj.z * diff.z) * double(bp.speed) * src.weight / (double(pick.pmf(k)) * double(samples));
     if (w != 0.0) addShadowBorderGradient(scene, params, view, se, bp, w, grad);
-  });
+  }, pixels);
   return st;
 }
 

@@ -126,7 +126,7 @@ BoundaryPassStats sampleShadowBorders(const Scene& scene, const ParameterRegistr
                                       int view, const Image& adjoint, int samples, const std::vector<BorderSource>& sources,
                                       const BorderSourceRadiance& radiance, uint64_t stream, uint64_t step, GradientScratchPool& scratch,
                                       std::vector<double>& gradient, const std::atomic<bool>* cancel,
-                                      SamplerKind samplerKind = SamplerKind::Independent);
+                                      SamplerKind samplerKind = SamplerKind::Independent, PixelDerivativeSink* pixels = nullptr);
 
 // What the environment's direction `ls.wi` (radiance ls.radiance, dist infinite) adds to surface
 // point `at` seen from `eye`: f |cos| Le, visibility included (per unit solid angle).

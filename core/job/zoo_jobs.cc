@@ -92,6 +92,16 @@ v1::JobSpec zooJob(const std::string& name) {
     o->set_loss("l2");
     o->set_steps(150);
     o->set_learning_rate_half_life(75);
+  } else if (name == "key") {
+    // Shape (Wang et al. 2023, Fig. 6): the key's turn about the vertical, from 20 degrees off,
+    // read from its silhouette and its shadow on the wall.
+    auto* p = o->add_parameters();
+    p->set_name("groups/key/rotation");
+    for (double v : {0.0, 20.0, 0.0}) p->add_initial_values(v);
+    p->set_learning_rate(0.5);
+    o->set_loss("l2");
+    o->set_steps(150);
+    o->set_learning_rate_half_life(75);
   } else if (name == "spot") {
     // Yan et al. 2024, Fig. 8: per-pixel probabilities of choosing the spot or the ambient light,
     // from 0.5 everywhere, against the variance of a 1-spp render (the mean does not depend on

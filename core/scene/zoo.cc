@@ -347,6 +347,55 @@ v1::Scene knot() {
   return m.s;
 }
 
+v1::Scene key() {
+  // Wang et al. 2023, Fig. 6 (bottom): a flat-shaded key turning about the vertical in front of a
+  // textured wall, lit by one small area light and a large one mostly hidden behind a board, so
+  // that most light samples drawn by power go to the light that contributes least.
+  SceneMaker m;
+  m.s.set_name("key");
+  m.diffuse("floor", 0.5, 0.5, 0.5);
+  m.diffuseTexture("wall", "painting", 64, 31, 0.25, 0.3, 0.45, 0.8, 0.7, 0.5);
+  m.diffuse("brass", 0.75, 0.58, 0.22);
+  m.diffuse("board", 0.4, 0.4, 0.4);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.quad("floor", "floor", {3, 3, 1}, kFaceUp, {0, 0, 0});
+  m.quad("wall", "wall", {2, 1.5, 1}, kFacePosZ, {0, 1.5, -0.8});
+  // The key, upright: a round bow on top, a shaft, three teeth on one side. The parts are a few
+  // millimetres apart: where two touched, their contact curve would move with the key and no
+  // boundary term samples one.
+  auto* bow = m.shape("bow", "brass");
+  bow->mutable_cylinder()->set_capped(true);
+  bow->mutable_cylinder()->set_segments(24);
+  SceneMaker::place(bow, {0.2, 0.2, 0.03}, {0, 0, 0}, {0, 1.3, 0});
+  auto* shaft = m.shape("shaft", "brass");
+  shaft->mutable_box();
+  SceneMaker::place(shaft, {0.035, 0.39, 0.025}, {0, 0, 0}, {0, 0.7, 0});
+  const double teeth[][3] = {{0.4, 0.06, 0.03}, {0.52, 0.045, 0.022}, {0.64, 0.07, 0.028}};
+  for (int i = 0; i < 3; ++i) {
+    auto* t = m.shape("tooth_" + std::to_string(i), "brass");
+    t->mutable_box();
+    SceneMaker::place(t, {teeth[i][1], teeth[i][2], 0.025}, {0, 0, 0}, {0.041 + teeth[i][1], teeth[i][0], 0});
+  }
+  auto* group = m.s.add_groups();
+  group->set_name("key");
+  for (auto& shape : *m.s.mutable_shapes())
+    if (shape.material() == "brass") {
+      shape.set_face_normals(true);  // flat-shaded, so shape jobs can turn it (groups/key/rotation)
+      group->add_shapes(shape.name());
+    }
+  // The small light faces the wall from in front and to the right: the key's shadow falls on the
+  // wall, left of and below it. The large light sits above the scene, facing down, mostly hidden
+  // by the board under it.
+  m.quad("small_light", "emitter", {0.06, 0.06, 1}, kFaceNegZ, {0.7, 1.7, 2.2});
+  m.areaLight("small", "small_light", 400, 380, 350);
+  m.quad("large_light", "emitter", {0.9, 0.9, 1}, kFaceDown, {-1.0, 3.0, 0.6});
+  m.areaLight("large", "large_light", 8, 8, 9);
+  m.quad("board", "board", {1.2, 1.2, 1}, kFaceUp, {-1.0, 2.6, 0.6});
+  m.view("front", {0.3, 1.1, 3.0}, {0, 1.0, -0.3}, 36);
+  m.film(160, 120);
+  return m.s;
+}
+
 v1::Scene spot() {
   SceneMaker m;
   m.s.set_name("spot");
@@ -685,6 +734,7 @@ const std::vector<ZooDef>& zoo() {
       {{"skylight", "a sky with a small sun (32x16 environment map) seen in a glossy probe, a diffuse sphere and a box, 8 views; its texels"}, skylight},
       {{"tree", "tree-like object seen only through its shadow, a small light and an occluded large light; its rotation (shape parameters)"}, tree},
       {{"knot", "torus knot under a bright spot and dim fills; its translation (shape parameters)"}, knot},
+      {{"key", "a flat-shaded key turning in front of a textured wall, a small light and an occluded large light; its rotation (shape parameters)"}, key},
       {{"spot", "textured object under a bright spot and a dim ambient light; per-pixel light selection"}, spot},
       {{"rings", "glossy rings on a diffuse floor under a small area light; variance-aware roughness"}, rings},
       {{"roulette", "closed room lit indirectly, 8 bounces; Russian-roulette survival per bounce"}, roulette},
