@@ -391,13 +391,16 @@ void addBenchDerivativeImagesCommand(CLI::App& bench, int& exitCode) {
                                  "(reusing across frames) against a high-sample reference (Wang et al. 2023, Fig. 6)");
   c->add_option("--scene", a->scene, "zoo scene (knot, key, oxalis, or any)")->capture_default_str();
   c->add_option("--param", a->param,
-                "NAME[i]: the parameter value to differentiate (default: knot shapes/knot/translation[0], key "
+                "NAME[i]: the parameter value to differentiate, value i of NAME, or a one-component name such as "
+                "shapes/knot/translation/x (default: knot shapes/knot/translation[0], key "
                 "groups/key/rotation[1], oxalis lights/spot_left/intensity[0], else the job's first value)");
-  c->add_option("--frames", a->frames, "frames of the animation")->capture_default_str();
+  c->add_option("--frames", a->frames, "frames of the animation")->check(CLI::Range(1, 100000))->capture_default_str();
   c->add_option("--to", a->to, "the value's last frame (default: the job's truth; when that is its start, 1.5 x the start)");
   c->add_option("--view", a->view, "the scene's view")->capture_default_str();
-  c->add_option("--restir-spp", a->restirSpp, "ReSTIR's samples per pixel (its frame time is the budget)")->capture_default_str();
-  c->add_option("--ref-spp", a->refSpp, "samples per pixel of each half of the RIS reference")->capture_default_str();
+  c->add_option("--restir-spp", a->restirSpp, "ReSTIR's samples per pixel (its frame time is the budget)")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  c->add_option("--ref-spp", a->refSpp, "samples per pixel of each half of the RIS reference")->check(CLI::Range(1, 4096))->capture_default_str();
   c->add_option("--burn-in", a->burnIn, "ReSTIR's render-only steps before frame 0 (default: the job's)");
   c->add_option("--methods", a->methods, "pt, ris, restir")->delimiter(',')->check(CLI::IsMember({"pt", "ris", "restir"}))->capture_default_str();
   c->add_option("--out", a->out, "write the last frame's derivative images here (reference and each method; .exr and .png)");
