@@ -45,6 +45,11 @@ struct PixelBenchArgs {
   double thetaFraction = 1;  // theta = truth + f (initial - truth)
   int referenceSamples = 0;  // > 0: also measure with maps from this many stage-1 passes per pixel
   std::string loss;          // empty: the job's
+  int stage1History = 0;     // > 0: the stage-1 samplers' maps average this many passes (0: the job's)
+  int refresh = 0;           // > 0: steps between stage-1 refreshes (0: the job's)
+  int stage1Stride = 0;      // > 0: stage 1's grid stride (0: the job's)
+  int levels = 0;            // > 0: adaptive's resolution levels D (0: the job's)
+  std::string out;           // folder for each stage-1 sampler's last map of view 0
   bool json = false;
 };
 BenchReport benchPixelVariance(const PixelBenchArgs& args);

@@ -384,6 +384,7 @@ struct ReconstructArgs {
   std::string csv = "reconstruct.csv";
   std::vector<std::string> pixelSamplers;  // compare these pixel samplers instead of light sampling
   int pixelSamples = 0;
+  int stage1History = 0;  // > 0: the stage-1 samplers' maps average this many passes
   std::vector<std::string> params;  // --param: replaces the zoo job's parameters
   std::vector<std::string> sets;    // --set FIELD.PATH=VALUE: any job field (e.g. optimization.pixel_refresh=5)
   int seeds = 1;                     // runs per method (job seed, seed + 1, ...); medians reported
@@ -544,6 +545,7 @@ void runBenchReconstruct(const ReconstructArgs& a) {
       GradientOptions o = s.problem.gradient;
       o.pixels.sampler = &pixelSampler(name);
       if (a.pixelSamples > 0) o.pixels.samplesPerView = a.pixelSamples;
+      if (a.stage1History > 0) o.pixels.stage1History = a.stage1History;
       variants.push_back({name, o});
     }
   }
@@ -897,6 +899,8 @@ void addBenchGradientCommands(CLI::App& bench, int& exitCode) {
   rc->add_option("--pixel-samplers", ra->pixelSamplers, "compare these pixel samplers (" + samplerNames + ") with the job's method")
       ->delimiter(',');
   rc->add_option("--pixel-samples", ra->pixelSamples, "pixel samples per view for the mini-batch samplers");
+  rc->add_option("--stage1-history", ra->stage1History, "with --pixel-samplers: loss_grad's and adaptive's maps average this many stage-1 passes (default: the job's)")
+      ->check(CLI::Range(1, 1024));
   rc->add_option("--set", ra->sets,
                  "FIELD.PATH=VALUE: set any field of the scene's job before the runs, e.g. optimization.pixel_refresh=5, "
                  "optimization.pixel_defensive=0.5, optimization.method=pt (repeatable)");

@@ -3,7 +3,9 @@
 // evaluations per sampler, one session per sampler so stage-1 maps are refreshed every
 // `refresh` steps as in an optimisation. Variance = sum over parameter components of the
 // per-component variance. Also stage 1's share of the adaptive sampler's time.
+#include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <cmath>
 #include <map>
 #include <iostream>
@@ -24,7 +26,27 @@ struct SamplerRun {
   // central moment (components treated as independent). Heavy-tailed derivatives (low-roughness
   // GGX) make it large: ratios are only as good as this.
   double varianceSe = 0;
+  PixelMap lastMap;  // view 0's map after the last evaluation
 };
+
+// A map's probabilities as an image, relative to uniform (1 = 1/P): .exr values, and a .png
+// scaled so the 99th percentile is white.
+void writePixelMap(const std::filesystem::path& dir, const std::string& name, const PixelMap& m, int width, int height) {
+  if (!m.valid()) return;
+  const double uniform = 1.0 / double(m.p.size());
+  Image exr(width, height, 1), png(width, height, 3);
+  std::vector<float> sorted(m.p);
+  std::sort(sorted.begin(), sorted.end());
+  const double top = std::max(1e-30, double(sorted[std::min(sorted.size() - 1, size_t(0.99 * double(sorted.size())))]));
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const double v = m.p[size_t(y) * size_t(width) + size_t(x)];
+      exr.at(x, y, 0) = float(v / uniform);
+      png.setRgb(x, y, Rgb(float(std::min(1.0, v / top))));
+    }
+  writeImage(dir / (name + "_map.exr"), exr);
+  writeImage(dir / (name + "_map.png"), png);
+}
 
 // ratio a/b and its standard error, to first order.
 std::string ratioWithSe(const SamplerRun& a, const SamplerRun& b) {
@@ -35,11 +57,14 @@ std::string ratioWithSe(const SamplerRun& a, const SamplerRun& b) {
 
 // `preset`: fixed maps per view (never refreshed) instead of the sampler's own stage 1.
 SamplerRun measure(Problem& p, const std::vector<Image>& targets, const PixelSampler& sampler, int samples, int reps, double defensive,
-                   const std::map<int, PixelMap>* preset = nullptr) {
+                   int stage1History, int stage1Stride, int levels, const std::map<int, PixelMap>* preset = nullptr) {
   GradientOptions o = p.gradient;
   if (defensive > 0) o.pixels.defensive = float(defensive);
   o.pixels.sampler = &sampler;
   o.pixels.samplesPerView = samples;
+  if (stage1History > 0) o.pixels.stage1History = stage1History;
+  if (stage1Stride > 0) o.pixels.stage1Stride = stage1Stride;
+  if (levels > 0) o.pixels.levels = levels;
   if (preset) o.pixels.refreshEvery = 1 << 30;
   GradientEngine engine(*p.scene, p.params, targets, o);
   EngineSession session;
@@ -72,6 +97,7 @@ SamplerRun measure(Problem& p, const std::vector<Image>& targets, const PixelSam
     varOfVariance += std::max(0.0, m4 - var * var) / reps;
   }
   out.varianceSe = std::sqrt(varOfVariance);
+  if (auto it = session.pixelMaps.find(0); it != session.pixelMaps.end()) out.lastMap = it->second;
   return out;
 }
 
@@ -94,7 +120,7 @@ std::map<int, PixelMap> referenceMaps(Problem& p, const std::vector<Image>& targ
       r.seed = p.seed ^ 0x0a11ce5ull;  // not the measured runs' streams
       Stage1 s = engine.measureStage1(int(v), r);
       for (size_t j = 0; j < pixels; ++j) {
-        for (int c = 0; c < 3; ++c) adjSq[j] += double(s.adjoint[3 * j + size_t(c)]) * s.adjoint[3 * j + size_t(c)];
+        for (int c = 0; c < 3; ++c) adjSq[j] += double(s.adjointSq[3 * j + size_t(c)]);
         derivSq[j] += double(s.derivSq[j]);
       }
     }
@@ -113,6 +139,7 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   auto job = zooJob(a.scene);
   if (a.targetSpp > 0) job.mutable_optimization()->set_target_spp(a.targetSpp);
   if (!a.loss.empty()) job.mutable_optimization()->set_loss(a.loss);
+  if (a.refresh > 0) job.mutable_optimization()->set_pixel_refresh(a.refresh);
   Problem p = buildProblem(job);
   std::cerr << "rendering targets (" << p.targetSpp << " spp)...\n";
   std::vector<Image> targets = renderTargets(p);
@@ -129,12 +156,16 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
   rep.number("theta_fraction", a.thetaFraction, "(0: the truth, 1: the job's initial parameters)");
   rep.number("param_error_at_theta", parameterError(p, p.initial));
   rep.number("defensive", a.defensive > 0 ? a.defensive : double(p.gradient.pixels.defensive));
+  rep.number("refresh_every", p.gradient.pixels.refreshEvery, "steps between stage-1 passes");
+  rep.number("stage1_history", a.stage1History > 0 ? a.stage1History : p.gradient.pixels.stage1History, "stage-1 passes the maps average");
+  rep.number("stage1_stride", a.stage1Stride > 0 ? a.stage1Stride : p.gradient.pixels.stage1Stride, "stage-1 grid stride in pixels");
+  rep.number("levels", a.levels > 0 ? a.levels : p.gradient.pixels.levels, "adaptive's resolution levels D");
   // Every registered mini-batch sampler, each against adaptive (Yan et al. 2025's).
   std::map<std::string, SamplerRun> runs;
   BenchReport::Json variance = BenchReport::Json::object(), varianceSe = BenchReport::Json::object();
   for (const PixelSampler* k : pixelSamplers()) {
     if (!k->miniBatch()) continue;
-    SamplerRun& run = runs[k->name()] = measure(p, targets, *k, n, a.reps, a.defensive);
+    SamplerRun& run = runs[k->name()] = measure(p, targets, *k, n, a.reps, a.defensive, a.stage1History, a.stage1Stride, a.levels);
     std::cerr << k->name() << ": variance " << run.variance << ", " << run.seconds << " s\n";
     variance[k->name()] = run.variance;
     varianceSe[k->name()] = run.varianceSe;
@@ -149,12 +180,18 @@ BenchReport benchPixelVariance(const PixelBenchArgs& a) {
                "= " + ratioWithSe(run, adaptive) + (std::string(k->name()) == "loss_grad" ? " (target >= 3)" : ""));
   }
   rep.number("stage1_overhead_fraction", adaptive.stage1 / adaptive.seconds, "(target <= 0.10)");
+  if (!a.out.empty()) {
+    std::filesystem::create_directories(a.out);
+    for (const PixelSampler* k : pixelSamplers())
+      if (k->usesStage1()) writePixelMap(a.out, k->name(), runs.at(k->name()).lastMap, p.scene->width, p.scene->height);
+    rep.text("maps", a.out + " (each stage-1 sampler's last map of view 0: <name>_map.exr in units of 1/P, .png scaled to its 99th percentile)");
+  }
   if (a.referenceSamples > 0) {
     std::cerr << "reference maps (" << a.referenceSamples << " stage-1 passes per view, every pixel)...\n";
     auto refAdaptive = referenceMaps(p, targets, true, a.referenceSamples, a.defensive);
     auto refLossGrad = referenceMaps(p, targets, false, a.referenceSamples, a.defensive);
-    SamplerRun ra = measure(p, targets, pixelSampler("adaptive"), n, a.reps, a.defensive, &refAdaptive);
-    SamplerRun rl = measure(p, targets, pixelSampler("loss_grad"), n, a.reps, a.defensive, &refLossGrad);
+    SamplerRun ra = measure(p, targets, pixelSampler("adaptive"), n, a.reps, a.defensive, 0, 0, 0, &refAdaptive);
+    SamplerRun rl = measure(p, targets, pixelSampler("loss_grad"), n, a.reps, a.defensive, 0, 0, 0, &refLossGrad);
     rep.value("variance_reference_maps", {{"loss_grad", rl.variance}, {"adaptive", ra.variance}},
               "loss_grad " + BenchReport::fmt(rl.variance) + ", adaptive " + BenchReport::fmt(ra.variance) + " (maps from many stage-1 passes)");
     rep.number("reference_ratio_loss_grad_over_adaptive", rl.variance / ra.variance,
@@ -180,10 +217,17 @@ void addBenchPixelCommand(CLI::App& bench, int& exitCode) {
   c->add_option("--reference-maps", a->referenceSamples,
                 "also measure adaptive and loss_grad with reference maps averaged over this many stage-1 passes at every pixel")
       ->check(CLI::Range(1, 100000));
+  c->add_option("--stage1-history", a->stage1History,
+                "loss_grad's and adaptive's maps average this many stage-1 passes, one per refresh (default: the job's, 1)")
+      ->check(CLI::Range(1, 1024));
+  c->add_option("--refresh", a->refresh, "steps between stage-1 refreshes (default: the job's pixel_refresh, 20)")->check(CLI::Range(1, 100000));
+  c->add_option("--stage1-stride", a->stage1Stride, "stage 1 traces every stride-th pixel in x and y (default: the job's, 2)")->check(CLI::Range(1, 16));
+  c->add_option("--levels", a->levels, "adaptive's resolution levels D of Eq. 18 (default: the job's, 4)")->check(CLI::Range(1, 8));
   c->add_option("--theta-fraction", a->thetaFraction, "measure at truth + f (initial - truth): 1 the start, small f near convergence")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   c->add_option("--loss", a->loss, "loss of the measured gradient (default: the job's)")->check(CLI::IsMember({"l2", "relative_l2", "l1"}));
+  c->add_option("--out", a->out, "write each stage-1 sampler's last map of view 0 here (<name>_map.exr, relative to uniform, and .png)");
   c->add_flag("--json", a->json, "print the figures as JSON");
   c->callback([a, &exitCode] {
     benchPixelVariance(*a).print(a->json);

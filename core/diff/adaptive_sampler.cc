@@ -34,7 +34,7 @@ std::vector<float> adaptiveMap(const Stage1& s, int levels) {
     for (int y = 0; y < gh; ++y)
       for (int x = 0; x < gw; ++x) {
         size_t c = size_t(y * gw + x), k = size_t((y / b) * bw + x / b);
-        for (int ch = 0; ch < 3; ++ch) adj2[k] += double(s.adjoint[3 * c + size_t(ch)]) * s.adjoint[3 * c + size_t(ch)];
+        for (int ch = 0; ch < 3; ++ch) adj2[k] += double(s.adjointSq[3 * c + size_t(ch)]);
         p2[k] += double(s.derivSq[c]);
         ++count[k];
       }
@@ -65,7 +65,8 @@ class AdaptivePixels final : public PixelSampler {
   bool usesStage1() const override { return true; }
   std::vector<float> cellValues(const Stage1& s, const PixelSamplingOptions& o) const override { return adaptiveMap(s, o.levels); }
   std::string describe(const PixelSamplingOptions& o) const override {
-    return "p_j ~ sqrt(E[(dL/dI_j)^2] sum_k E[(dI_j/dtheta_k)^2]) over " + std::to_string(o.levels) + " levels (Yan et al. 2025, Eq. 12, 16, 18)";
+    return "p_j ~ sqrt(E[(dL/dI_j)^2] sum_k E[(dI_j/dtheta_k)^2]) over " + std::to_string(o.levels) + " levels (Yan et al. 2025, Eq. 12, 16, 18)" +
+           stage1HistoryNote(o);
   }
   void parseOptions(const invr::v1::PixelSamplerSpecs& specs, int filmPixels, PixelSamplingOptions& o) const override {
     const invr::v1::AdaptivePixelsSpec& a = specs.adaptive();

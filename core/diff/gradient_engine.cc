@@ -174,7 +174,9 @@ void GradientEngine::drawPixelBatches(Step& s) {
       } else if (stale) {
         s.checkCancel();
         Stopwatch clock;
-        map = buildPixelMap(po, runStage1(v, req, s.drops), req.step, &s.drops);
+        Stage1& history = s.session.stage1History[v];
+        accumulateStage1(history, runStage1(v, req, s.drops), po.stage1History);
+        map = buildPixelMap(po, history, req.step, &s.drops);
         s.out.stats.set_seconds_stage1(s.out.stats.seconds_stage1() + clock.seconds());
       }
       s.batches.push_back(drawPixelBatch(map, n, RngKey{streamSeed(req.seed, kPixelBatchStream), req.step, uint64_t(v), 0, 0}));
@@ -557,10 +559,16 @@ Stage1 GradientEngine::runStage1(int view, const GradientRequest& req, SampleDro
   PassOutput deriv = runPass(scene_, *estimator, spec, *scratch_);
   drops += primal.drops;
   drops += deriv.drops;
-  s.adjoint.resize(cellPixel.size() * 3);
+  s.passes = 1;
+  s.adjointAbs.resize(cellPixel.size() * 3);
+  s.adjointSq.resize(cellPixel.size() * 3);
   s.derivSq.resize(cellPixel.size());
   for (size_t c = 0; c < cellPixel.size(); ++c) {
-    for (int ch = 0; ch < 3; ++ch) s.adjoint[3 * c + size_t(ch)] = adjoint.data()[cellPixel[c] * 3 + size_t(ch)];
+    for (int ch = 0; ch < 3; ++ch) {
+      const float a = adjoint.data()[cellPixel[c] * 3 + size_t(ch)];
+      s.adjointAbs[3 * c + size_t(ch)] = std::abs(a);
+      s.adjointSq[3 * c + size_t(ch)] = a * a;
+    }
     s.derivSq[c] = deriv.derivSq[cellPixel[c]];
   }
   // Guides for the edge-aware upsampling: first-hit normal and albedo.

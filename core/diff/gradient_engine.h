@@ -73,6 +73,7 @@ struct EngineSession {
   ReservoirStore primal, derivative;
   BoundaryStateSlots boundary;  // what each boundary term keeps, by its name (edge reservoirs: Alg. 6)
   std::map<int, PixelMap> pixelMaps;  // per view: the pixel-sampling probabilities
+  std::map<int, Stage1> stage1History;  // per view: the stage-1 moments the maps are built from
 };
 
 class GradientScratchPool;

@@ -112,6 +112,9 @@ void parseStage1SamplerSpec(const Spec& spec, const std::string& field, PixelSam
   if (spec.refresh() > 0) o.refreshEvery = spec.refresh();
   if (spec.stage1_stride() < 0 || spec.stage1_stride() > 16) fail("stage1_stride", "must be in 1..16 (got " + std::to_string(spec.stage1_stride()) + ")");
   if (spec.stage1_stride() > 0) o.stage1Stride = spec.stage1_stride();
+  if (spec.stage1_history() < 0 || spec.stage1_history() > 1024)
+    fail("stage1_history", "must be in 1..1024 (got " + std::to_string(spec.stage1_history()) + ")");
+  if (spec.stage1_history() > 0) o.stage1History = spec.stage1_history();
 }
 
 template void parseStage1SamplerSpec(const invr::v1::LossGradPixelsSpec&, const std::string&, PixelSamplingOptions&, int);
@@ -176,6 +179,30 @@ std::vector<float> defensiveMixture(const std::vector<float>& map, float defensi
     p[i] = float((1.0 - double(defensive)) * v + double(defensive) * uniform);
   }
   return p;
+}
+
+std::string stage1HistoryNote(const PixelSamplingOptions& o) {
+  return o.stage1History > 1 ? ", maps from the last " + std::to_string(o.stage1History) + " stage-1 passes" : "";
+}
+
+void accumulateStage1(Stage1& history, const Stage1& fresh, int window) {
+  const bool sameGrid = history.passes > 0 && history.gw == fresh.gw && history.gh == fresh.gh && history.stride == fresh.stride &&
+                        history.width == fresh.width && history.height == fresh.height;
+  if (!sameGrid || window <= 1) {
+    history = fresh;
+    return;
+  }
+  // Weight of the newest pass: 1/n while the history holds fewer than `window`, then 1/window.
+  const int n = std::min(history.passes + fresh.passes, window);
+  const float w = float(fresh.passes) / float(n);
+  auto blend = [w](std::vector<float>& into, const std::vector<float>& from) {
+    for (size_t i = 0; i < into.size(); ++i) into[i] += w * (from[i] - into[i]);
+  };
+  blend(history.adjointAbs, fresh.adjointAbs);
+  blend(history.adjointSq, fresh.adjointSq);
+  blend(history.derivSq, fresh.derivSq);
+  history.guide = fresh.guide;
+  history.passes = n;
 }
 
 PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step, SampleDrops* drops) {

@@ -45,6 +45,7 @@ struct PixelSamplingOptions {
   int refreshEvery = 20;      // steps between stage-1 refreshes
   int stage1Stride = 2;       // stage 1 traces every stride-th pixel in x and y
   int levels = 4;             // D of Eq. 18 (adaptive)
+  int stage1History = 1;      // stage-1 passes the maps average (accumulateStage1's window)
   int samplesFor(size_t pixels) const { return samplesPerView > 0 ? samplesPerView : std::max<int>(1, int(pixels / 4)); }
 };
 
@@ -54,13 +55,23 @@ PixelSamplingOptions parsePixelSamplingOptions(const invr::v1::OptimizationSpec&
 
 // Stage-1 measurements on the sparse grid (gw x gh cells, cell (i, j) at pixel
 // (i*stride + stride/2, j*stride + stride/2)), and the guides for the edge-aware upsampling.
+// Cells hold moments, means over the `passes` stage-1 passes folded in (one sample per cell and
+// pass): samplers that square dL/dI need its mean square, not the square of its mean, which the
+// noise would cancel from.
 struct Stage1 {
   int gw = 0, gh = 0, stride = 1;
-  std::vector<float> adjoint;     // per cell, 3 channels: dL/dI at the cell's pixel (one sample)
-  std::vector<float> derivSq;     // per cell: sum over the path's parameter derivatives squared
+  std::vector<float> adjointAbs;  // per cell, 3 channels: mean |dL/dI| at the cell's pixel
+  std::vector<float> adjointSq;   // per cell, 3 channels: mean (dL/dI)^2
+  std::vector<float> derivSq;     // per cell: mean sum over the path's parameter derivatives squared
   std::vector<float> guide;       // full resolution, 6 per pixel: first-hit normal and albedo
   int width = 0, height = 0;
+  int passes = 0;
 };
+
+// Folds a fresh pass (passes == 1) into `history`: a running mean over the first `window` passes,
+// then an exponential mean giving the newest pass 1/window. The guide is the fresh pass's (the
+// scene may have moved). A history of another grid, or none, restarts from the fresh pass.
+void accumulateStage1(Stage1& history, const Stage1& fresh, int window);
 
 // Per-view probabilities at full resolution (sum to 1, all > 0), ready to draw from, and when
 // they were computed.
@@ -121,6 +132,9 @@ struct RegisterPixelSampler {
 
 std::vector<float> lossGradMap(const Stage1& s);                // loss_grad_sampler.cc
 std::vector<float> adaptiveMap(const Stage1& s, int levels);    // adaptive_sampler.cc
+
+// ", maps from the last K stage-1 passes" when the maps keep a history (for describe()).
+std::string stage1HistoryNote(const PixelSamplingOptions& o);
 
 // The sampler's probabilities from a stage-1 measurement (uniform ones for samplers without).
 PixelMap buildPixelMap(const PixelSamplingOptions& o, const Stage1& s, uint64_t step, SampleDrops* drops = nullptr);

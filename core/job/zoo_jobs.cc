@@ -58,6 +58,19 @@ v1::JobSpec zooJob(const std::string& name) {
     // One parameter under noisy gradients: at a constant rate Adam leaves it swinging by about the
     // rate (1e-2) around the truth, whatever the sampler; a decaying rate lets it settle.
     o->set_learning_rate_half_life(50);
+  } else if (name == "sunroom") {
+    // Yan et al. 2025's regime: path tracing with up to five bounces and a mini-batch of a fifth
+    // of the pixels (15,360 camera paths a step, a primal and a derivative pass), drawn by the
+    // adaptive sampler. Plain L2, as the paper's. A constant rate: a step takes about 30 ms, so a
+    // half-life in steps would end an equal-time comparison's learning within seconds.
+    param(o, "materials/rug/albedo", 0.5, 0.01);
+    param(o, "materials/mirror/roughness", 0.3, 0.01);
+    o->set_method(v1::METHOD_PT);
+    o->set_max_depth(5);
+    o->set_loss("l2");
+    o->set_steps(600);
+    o->set_pixel_sampler("adaptive");
+    o->set_pixel_samples(15360);
   } else if (name == "backlit") {
     param(o, "materials/object/albedo", 0.5, 0.02);
     o->set_views_per_step(4);

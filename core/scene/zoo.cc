@@ -90,11 +90,23 @@ struct SceneMaker {
     c->set_fov_y_degrees(fov);
   }
   void film(int w, int h) { s.mutable_film()->set_width(w); s.mutable_film()->set_height(h); }
+  // A room x in [-2, 2], y in [0, 2.5], z in [-2, 2] without its wall x = 2 (which each scene
+  // builds around its own opening).
+  void roomWithoutRightWall(const std::string& floorMaterial, const std::string& wallMaterial);
 };
+
 
 // Quad orientations (the unit quad faces +z).
 constexpr std::array<double, 3> kFaceUp{-90, 0, 0}, kFaceDown{90, 0, 0}, kFacePosZ{0, 0, 0}, kFaceNegZ{0, 180, 0},
     kFacePosX{0, 90, 0}, kFaceNegX{0, -90, 0};
+
+void SceneMaker::roomWithoutRightWall(const std::string& floorMaterial, const std::string& wallMaterial) {
+  quad("floor", floorMaterial, {2, 2, 1}, kFaceUp, {0, 0, 0});
+  quad("ceiling", wallMaterial, {2, 2, 1}, kFaceDown, {0, 2.5, 0});
+  quad("back", wallMaterial, {2, 1.25, 1}, kFacePosZ, {0, 1.25, -2});
+  quad("front", wallMaterial, {2, 1.25, 1}, kFaceNegZ, {0, 1.25, 2});
+  quad("left", wallMaterial, {2, 1.25, 1}, kFacePosX, {-2, 1.25, 0});
+}
 
 v1::Scene cornell() {
   SceneMaker m;
@@ -152,11 +164,7 @@ v1::Scene ajar() {
   m.diffuse("emitter", 0.8, 0.8, 0.8);
   m.diffuseTexture("painting", "painting", 64, 5, 0.2, 0.45, 0.2, 0.8, 0.7, 0.5);
   // Main room x in [-2, 2], y in [0, 2.5], z in [-2, 2]; the door is in the wall x = 2.
-  m.quad("floor", "floor", {2, 2, 1}, kFaceUp, {0, 0, 0});
-  m.quad("ceiling", "wall", {2, 2, 1}, kFaceDown, {0, 2.5, 0});
-  m.quad("back", "wall", {2, 1.25, 1}, kFacePosZ, {0, 1.25, -2});
-  m.quad("front", "wall", {2, 1.25, 1}, kFaceNegZ, {0, 1.25, 2});
-  m.quad("left", "wall", {2, 1.25, 1}, kFacePosX, {-2, 1.25, 0});
+  m.roomWithoutRightWall("floor", "wall");
   // Wall x = 2 with a door opening z in [-0.5, 0.5], y in [0, 2].
   m.quad("right_a", "wall", {0.75, 1.25, 1}, kFaceNegX, {2, 1.25, -1.25});
   m.quad("right_b", "wall", {0.75, 1.25, 1}, kFaceNegX, {2, 1.25, 1.25});
@@ -212,6 +220,50 @@ v1::Scene mirror() {
   m.areaLight("top", "light", 12, 12, 12);
   m.view("front", {0.4, 1.2, 2.6}, {0, 0.7, -1.0}, 42);
   m.film(256, 192);
+  return m.s;
+}
+
+// Yan et al. 2025's regime for adaptive pixel sampling: multi-bounce path tracing whose variance
+// is uneven across the image. A room open to a small, very bright sun through a window: the sun
+// patch and its caustic under a glass ball (found only by paths that refract onto the sun) are
+// noisy; the rest of the room is lit mostly by bounced light and a dim ceiling fill. The
+// parameters (a rug's texture and a glossy mirror's roughness) are seen in a minority of the
+// pixels, so a sampler that finds them spends the path budget where the gradient is.
+v1::Scene sunroom() {
+  SceneMaker m;
+  m.s.set_name("sunroom");
+  m.diffuse("wall", 0.7, 0.68, 0.62);
+  m.diffuse("floor", 0.45, 0.4, 0.35);
+  m.diffuse("frame", 0.3, 0.25, 0.2);
+  m.diffuse("emitter", 0.8, 0.8, 0.8);
+  m.diffuseTexture("rug", "painting", 16, 23, 0.55, 0.15, 0.1, 0.85, 0.75, 0.4);
+  auto* mir = m.s.add_materials();
+  mir->set_name("mirror");
+  mir->mutable_rough_conductor()->mutable_roughness()->set_value(0.1);
+  auto* glass = m.s.add_materials();
+  glass->set_name("glass");
+  glass->mutable_dielectric()->set_ior(1.5);
+  // Room x in [-2, 2], y in [0, 2.5], z in [-2, 2]; the window is in the wall x = 2.
+  m.roomWithoutRightWall("floor", "wall");
+  // Wall x = 2 around a window z in [-1.2, 0.4], y in [0.7, 1.9].
+  m.quad("right_back", "wall", {0.4, 1.25, 1}, kFaceNegX, {2, 1.25, -1.6});
+  m.quad("right_front", "wall", {0.8, 1.25, 1}, kFaceNegX, {2, 1.25, 1.2});
+  m.quad("right_low", "wall", {0.8, 0.35, 1}, kFaceNegX, {2, 0.35, -0.4});
+  m.quad("right_high", "wall", {0.8, 0.3, 1}, kFaceNegX, {2, 2.2, -0.4});
+  m.quad("rug", "rug", {0.6, 0.45, 1}, kFaceUp, {-0.55, 0.003, -0.5});
+  m.quad("mirror", "mirror", {0.7, 0.55, 1}, kFacePosZ, {-1.0, 1.15, -1.98});
+  m.quad("mirror_frame", "frame", {0.76, 0.61, 1}, kFacePosZ, {-1.0, 1.15, -1.99});
+  auto* ball = m.shape("ball", "glass");
+  ball->mutable_sphere()->set_rings(48);
+  SceneMaker::place(ball, {0.28, 0.28, 0.28}, {0, 0, 0}, {0.95, 0.28, -0.35});
+  // The sun: small and far, low in the sky beyond the window.
+  m.quad("sun", "emitter", {0.4, 0.4, 1}, kFaceNegX, {7.0, 4.2, -0.4});
+  m.areaLight("sun_light", "sun", 800, 730, 600);
+  m.s.mutable_lights(m.s.lights_size() - 1)->mutable_area()->set_two_sided(true);
+  m.quad("fill", "emitter", {0.3, 0.3, 1}, kFaceDown, {-0.8, 2.49, 0.6});
+  m.areaLight("fill_light", "fill", 4, 4, 4);
+  m.view("room", {1.4, 1.4, 1.9}, {-0.6, 0.55, -1.2}, 52);
+  m.film(320, 240);
   return m.s;
 }
 
@@ -730,6 +782,7 @@ const std::vector<ZooDef>& zoo() {
       {{"oxalis", "textured painting under two bright spots and a dim fill light"}, oxalis},
       {{"ajar", "painting in a room lit through a nearly closed door plus a dim fill"}, ajar},
       {{"mirror", "three diffuse objects in front of a glossy mirror"}, mirror},
+      {{"sunroom", "a room lit by a small bright sun through a window, a glass ball and its caustic, a glossy mirror; a rug's texture and the mirror's roughness (multi-bounce path tracing, adaptive pixel sampling)"}, sunroom},
       {{"backlit", "textured sphere under an environment lit from behind, 16 views"}, backlit},
       {{"skylight", "a sky with a small sun (32x16 environment map) seen in a glossy probe, a diffuse sphere and a box, 8 views; its texels"}, skylight},
       {{"tree", "tree-like object seen only through its shadow, a small light and an occluded large light; its rotation (shape parameters)"}, tree},

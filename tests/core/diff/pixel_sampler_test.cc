@@ -136,12 +136,16 @@ TEST(PixelSampling, EachSamplerReadsItsOwnOptions) {
   EXPECT_EQ(shared.levels, 4);
   EXPECT_EQ(shared.stage1Stride, 2);
   const PixelSamplingOptions own = parse(R"({"pixel_sampler": "adaptive", "pixel_samples": 300, "pixel_samplers": {"adaptive":
-      {"samples": 500, "defensive": 0.5, "refresh": 3, "stage1_stride": 4, "levels": 2}}})");
+      {"samples": 500, "defensive": 0.5, "refresh": 3, "stage1_stride": 4, "levels": 2, "stage1_history": 8}}})");
   EXPECT_EQ(own.samplesPerView, 500);
   EXPECT_FLOAT_EQ(own.defensive, 0.5f);
   EXPECT_EQ(own.refreshEvery, 3);
   EXPECT_EQ(own.stage1Stride, 4);
   EXPECT_EQ(own.levels, 2);
+  EXPECT_EQ(own.stage1History, 8);
+  EXPECT_EQ(shared.stage1History, 1);
+  EXPECT_THROW(parse(R"({"pixel_sampler": "adaptive", "pixel_samplers": {"adaptive": {"stage1_history": 2000}}})"), InputError);
+  EXPECT_THROW(parse(R"({"pixel_sampler": "loss_grad", "pixel_samplers": {"loss_grad": {"stage1_history": -1}}})"), InputError);
   const PixelSamplingOptions lossGrad = parse(R"({"pixel_sampler": "loss_grad", "pixel_samplers": {"loss_grad": {"stage1_stride": 1}}})");
   EXPECT_EQ(lossGrad.stage1Stride, 1);
   EXPECT_EQ(parse(R"({"pixel_sampler": "uniform", "pixel_samplers": {"uniform": {"samples": 64}}})").samplesPerView, 64);
@@ -274,6 +278,75 @@ TEST(PixelSampling, AdaptiveStaysUnbiasedOnACaustic) {
   const double share = std::abs(part.mean) / std::abs(all[sum].mean);
   std::printf("caustic: %.1f %% of the gradient sum, %.1f %% of the probability mass\n", 100 * share, 100 * causticMass);
   EXPECT_LT(causticMass, share / 3) << "stage 1 found the caustic: the test no longer exercises the defensive mixture";
+}
+
+// The maps' history (stage1_history = K): the plain mean of the first K passes, then an
+// exponential mean giving the newest pass 1/K; a pass on another grid starts it again.
+TEST(PixelSampling, Stage1HistoryAveragesThePassesItHolds) {
+  auto pass = [](float v, int gw) {
+    Stage1 s;
+    s.gw = gw, s.gh = 1, s.stride = 2, s.width = 2 * gw, s.height = 2, s.passes = 1;
+    s.adjointAbs.assign(size_t(3 * gw), v);
+    s.adjointSq.assign(size_t(3 * gw), v * v);
+    s.derivSq.assign(size_t(gw), 2 * v);
+    s.guide.assign(size_t(6 * 4 * gw), v);
+    return s;
+  };
+  Stage1 h;
+  for (float v : {1.f, 2.f, 3.f}) accumulateStage1(h, pass(v, 4), 4);
+  EXPECT_EQ(h.passes, 3);
+  EXPECT_FLOAT_EQ(h.adjointAbs[0], 2.f);               // (1 + 2 + 3) / 3
+  EXPECT_FLOAT_EQ(h.adjointSq[5], 14.f / 3.f);         // (1 + 4 + 9) / 3: the mean square, not the mean's square
+  EXPECT_FLOAT_EQ(h.derivSq[3], 4.f);
+  EXPECT_FLOAT_EQ(h.guide[0], 3.f);                    // the newest pass's guide
+  accumulateStage1(h, pass(6, 4), 4);                  // the fourth: (1 + 2 + 3 + 6) / 4
+  EXPECT_FLOAT_EQ(h.adjointAbs[1], 3.f);
+  accumulateStage1(h, pass(7, 4), 4);                  // then 3 + (7 - 3) / 4
+  EXPECT_EQ(h.passes, 4);
+  EXPECT_FLOAT_EQ(h.adjointAbs[2], 4.f);
+  accumulateStage1(h, pass(5, 8), 4);                  // another grid: only the fresh pass
+  EXPECT_EQ(h.passes, 1);
+  EXPECT_EQ(h.derivSq.size(), 8u);
+  EXPECT_FLOAT_EQ(h.adjointAbs[0], 5.f);
+  accumulateStage1(h, pass(9, 8), 1);                  // window 1: each pass alone
+  EXPECT_FLOAT_EQ(h.adjointAbs[0], 9.f);
+}
+
+// The engine keeps the history in the session: with stage1_history 2 and a refresh every step,
+// step 1's map is the one built from the mean of steps 0's and 1's stage-1 passes (the same
+// passes measureStage1 gives for those requests), and not the one from step 1's pass alone.
+TEST(PixelSampling, TheSessionsMapsComeFromTheStage1History) {
+  PixelSetup& s = direct();
+  GradientOptions o;
+  o.method = GradientMethod::Pt;
+  o.pixels.sampler = &pixelSampler("adaptive");
+  o.pixels.samplesPerView = 64;
+  o.pixels.refreshEvery = 1;
+  o.pixels.stage1History = 2;
+  GradientEngine engine(*s.scene, s.reg, {s.target}, o);
+  s.reg.write(s.theta, *s.scene);
+  EngineSession session;
+  std::vector<GradientRequest> requests(2);
+  for (uint64_t step = 0; step < 2; ++step) {
+    requests[step].views = {0};
+    requests[step].seed = 77;
+    requests[step].step = step;
+    engine.evaluate(requests[step], session);
+  }
+  ASSERT_EQ(session.stage1History.at(0).passes, 2);
+  Stage1 h;
+  for (const GradientRequest& r : requests) accumulateStage1(h, engine.measureStage1(0, r), 2);
+  const std::vector<float> expected = buildPixelMap(o.pixels, h, 1).p;
+  const std::vector<float> alone = buildPixelMap(o.pixels, engine.measureStage1(0, requests[1]), 1).p;
+  const std::vector<float>& got = session.pixelMaps.at(0).p;
+  ASSERT_EQ(got.size(), expected.size());
+  double offHistory = 0, offAlone = 0;
+  for (size_t j = 0; j < got.size(); ++j) {
+    offHistory = std::max(offHistory, double(std::abs(got[j] - expected[j])));
+    offAlone = std::max(offAlone, double(std::abs(got[j] - alone[j])));
+  }
+  EXPECT_EQ(offHistory, 0.0);
+  EXPECT_GT(offAlone, 0.0) << "one pass and two give the same map: the test cannot tell them apart";
 }
 
 TEST(PixelSampling, EveryPixelKeepsAProbabilityAndWeightsMatchTheDraws) {
